@@ -1,0 +1,54 @@
+"""The project's own error types.
+
+Every error a user can provoke with bad input is a :class:`FusionCutError`; the CLI prints its message
+(which names the file, line and column, or the CL) instead of a traceback.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+
+class FusionCutError(Exception):
+    """Base of every error FusionCut raises on purpose."""
+
+
+@dataclass(frozen=True)
+class SourceLocation:
+    """Where something came from: a file, a 1-based line and column (0 when unknown)."""
+
+    file: str = "<memory>"
+    line: int = 0
+    column: int = 0
+
+    def __str__(self) -> str:
+        parts = [str(self.file)]
+        if self.line:
+            parts.append(str(self.line))
+            if self.column:
+                parts.append(str(self.column))
+        return ":".join(parts)
+
+
+class InputError(FusionCutError):
+    """Malformed or unsupported input; the message starts with ``file:line:column``."""
+
+    def __init__(self, message: str, where: SourceLocation | str | Path | None = None):
+        if where is not None and not isinstance(where, SourceLocation):
+            where = SourceLocation(str(where))
+        self.where = where
+        self.reason = message
+        super().__init__(f"{where}: {message}" if where is not None else message)
+
+
+class ToolDefinitionError(InputError):
+    """A tool whose geometry we cannot model (unknown type, impossible dimensions)."""
+
+
+class GeometryError(FusionCutError):
+    """A geometric operation failed (e.g. a Boolean); carries the CL index when known."""
+
+    def __init__(self, message: str, cl_index: int | None = None):
+        self.cl_index = cl_index
+        self.reason = message
+        super().__init__(f"CL {cl_index}: {message}" if cl_index is not None else message)
