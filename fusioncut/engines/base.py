@@ -1,0 +1,40 @@
+"""What every engagement engine offers, whatever its kernel."""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal, Protocol
+
+from fusioncut.model.engagement import EngagementMap
+from fusioncut.model.stock import Stock
+from fusioncut.model.tools import MillingTool
+from fusioncut.model.moves import Toolpath
+
+
+@dataclass(frozen=True)
+class EngineOptions:
+    """Knobs of a run (mm unless stated).
+
+    ``slice_height``: axial slice spacing; slice k covers [k, k+1)*slice_height above the tip and is
+    evaluated at its middle. ``max_segment_length``: longer moves are split into CL segments of at most
+    this length (None: as programmed). ``chord_tolerance``: helices / ZX / YZ arcs become chords within
+    this distance of the path. ``sweep``: "exact" or "sampled" (tool copies every R/4, the published
+    method). ``failure_dir``: where the shapes of a failed Boolean are saved as .brep.
+    ``merge_growth``: merge same-surface faces of the workpiece when its face count grew by this
+    fraction since the last merge.
+    """
+
+    slice_height: float = 1.0
+    max_segment_length: float | None = None
+    chord_tolerance: float = 1e-3
+    sweep: Literal["exact", "sampled"] = "exact"
+    failure_dir: Path | None = None
+    merge_growth: float = 0.5
+    fuzzy_retries: tuple[float, ...] = (1e-5, 1e-4)
+
+
+class EngagementEngine(Protocol):
+    def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
+        """Yield one EngagementMap per CL segment, in order; never skip one."""
+        ...

@@ -1,0 +1,165 @@
+"""Thin helpers over OCP (OpenCASCADE) used by the B-Rep engine. Only ``engines/brep`` imports OCP."""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator
+
+from OCP.Bnd import Bnd_Box
+from OCP.BRep import BRep_Builder
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
+from OCP.BRepBndLib import BRepBndLib
+from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeWire
+from OCP.BRepGProp import BRepGProp
+from OCP.BRepTools import BRepTools
+from OCP.GC import GC_MakeArcOfCircle
+from OCP.GProp import GProp_GProps
+from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
+from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
+from OCP.TopAbs import TopAbs_FACE, TopAbs_SOLID
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopLoc import TopLoc_Location
+from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
+from OCP.collections import List_TopoDS_Shape
+
+Vec3 = tuple[float, float, float]
+
+
+def pnt(p: Vec3) -> gp_Pnt:
+    return gp_Pnt(float(p[0]), float(p[1]), float(p[2]))
+
+
+def volume(shape: TopoDS_Shape) -> float:
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(shape, props)
+    return props.Mass()
+
+
+def area(shape: TopoDS_Shape) -> float:
+    props = GProp_GProps()
+    BRepGProp.SurfaceProperties_s(shape, props)
+    return props.Mass()
+
+
+def faces(shape: TopoDS_Shape) -> Iterator[TopoDS_Face]:
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        yield TopoDS.Face(exp.Current())
+        exp.Next()
+
+
+def count_faces(shape: TopoDS_Shape) -> int:
+    return sum(1 for _ in faces(shape))
+
+
+def solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
+    out = []
+    exp = TopExp_Explorer(shape, TopAbs_SOLID)
+    while exp.More():
+        out.append(exp.Current())
+        exp.Next()
+    return out
+
+
+def bounding_box(shape: TopoDS_Shape) -> tuple[Vec3, Vec3]:
+    box = Bnd_Box()
+    BRepBndLib.Add_s(shape, box, False)
+    lo, hi = box.CornerMin(), box.CornerMax()
+    return (lo.X(), lo.Y(), lo.Z()), (hi.X(), hi.Y(), hi.Z())
+
+
+def boxes_overlap(a: tuple[Vec3, Vec3], b: tuple[Vec3, Vec3], gap: float = 1e-7) -> bool:
+    return all(a[0][k] <= b[1][k] + gap and b[0][k] <= a[1][k] + gap for k in range(3))
+
+
+def wire_from_points(segments: Iterable[tuple[str, tuple[Vec3, ...]]]):
+    """Closed wire from ``("line", (p0, p1))`` and ``("arc", (p0, pmid, p1))`` pieces."""
+    mk = BRepBuilderAPI_MakeWire()
+    for kind, pts in segments:
+        if kind == "line":
+            edge = BRepBuilderAPI_MakeEdge(pnt(pts[0]), pnt(pts[1])).Edge()
+        else:
+            arc = GC_MakeArcOfCircle(pnt(pts[0]), pnt(pts[1]), pnt(pts[2])).Value()
+            edge = BRepBuilderAPI_MakeEdge(arc).Edge()
+        mk.Add(edge)
+    if not mk.IsDone():
+        raise RuntimeError("could not close the profile wire")
+    return mk.Wire()
+
+
+def planar_face(wire) -> TopoDS_Face:
+    mk = BRepBuilderAPI_MakeFace(wire, True)
+    if not mk.IsDone():
+        raise RuntimeError("could not make a planar face from the profile")
+    return mk.Face()
+
+
+def placement(position: Vec3, angle_rad: float) -> TopLoc_Location:
+    """Rotation about +Z by ``angle_rad`` then translation to ``position``."""
+    rot = gp_Trsf()
+    rot.SetRotation(gp_Ax1(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), angle_rad)
+    tr = gp_Trsf()
+    tr.SetTranslation(gp_Vec(*map(float, position)))
+    return TopLoc_Location(tr.Multiplied(rot))
+
+
+def shape_list(shapes: Iterable[TopoDS_Shape]) -> List_TopoDS_Shape:
+    lst = List_TopoDS_Shape()
+    for s in shapes:
+        lst.Append(s)
+    return lst
+
+
+def fuse_all(shapes: list[TopoDS_Shape], glue: bool = False, fuzzy: float = 0.0) -> TopoDS_Shape:
+    """Union of solids in one Boolean; ``glue`` for arguments that only share whole faces."""
+    if len(shapes) == 1:
+        return shapes[0]
+    op = BRepAlgoAPI_Fuse()
+    op.SetArguments(shape_list(shapes[:1]))
+    op.SetTools(shape_list(shapes[1:]))
+    if glue:
+        from OCP.BOPAlgo import BOPAlgo_GlueShift
+
+        op.SetGlue(BOPAlgo_GlueShift)
+    if fuzzy:
+        op.SetFuzzyValue(fuzzy)
+    op.Build()
+    if not op.IsDone():
+        raise RuntimeError("fuse of the sweep pieces failed")
+    return unify(op.Shape())
+
+
+def unify(shape: TopoDS_Shape) -> TopoDS_Shape:
+    """Merge faces that lie on the same surface (what keeps Booleans fast along a path)."""
+    u = ShapeUpgrade_UnifySameDomain(shape, True, True, False)
+    u.Build()
+    return u.Shape()
+
+
+def compound(shapes: Iterable[TopoDS_Shape]) -> TopoDS_Compound:
+    c = TopoDS_Compound()
+    b = BRep_Builder()
+    b.MakeCompound(c)
+    for s in shapes:
+        b.Add(c, s)
+    return c
+
+
+def write_brep(shape: TopoDS_Shape, path: str) -> None:
+    BRepTools.Write_s(shape, path)
+
+
+def read_brep(path: str) -> TopoDS_Shape:
+    shape = TopoDS_Shape()
+    BRepTools.Read_s(shape, path, BRep_Builder())
+    return shape
+
+
+def deg(x: float) -> float:
+    return math.degrees(x)
+
+
+__all__ = [
+    "BRepAlgoAPI_Common", "BRepAlgoAPI_Cut", "area", "bounding_box", "boxes_overlap", "compound", "count_faces",
+    "faces", "fuse_all", "placement", "planar_face", "pnt", "read_brep", "shape_list", "solids", "unify",
+    "volume", "wire_from_points", "write_brep",
+]
