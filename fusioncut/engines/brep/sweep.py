@@ -141,8 +141,11 @@ def _arc_xy(tool: MillingTool, move: ArcMove, seam: float) -> TopoDS_Shape:
         # keep only the part of the section on the tool's side of the arc axis: the rest sweeps
         # a disk about the axis that the tool itself already covers
         big = 4 * (r_max + rho) + prof.height
-        ax = gp_Ax2(pnt((c[0] - big * a0[1], c[1] + big * a0[0], p0[2] - big)), gp_Dir(*a0), gp_Dir(-a0[1], a0[0], 0))
-        half_space = BRepPrimAPI_MakeBox(ax, 2 * big, 2 * big, 4 * big).Shape()
+        n = (-a0[1], a0[0], 0.0)
+        # box from the arc axis outward along a0, wide along n and tall along Z (Y = a0 x n = Z)
+        corner = (c[0] - big * n[0], c[1] - big * n[1], p0[2] - big)
+        ax = gp_Ax2(pnt(corner), gp_Dir(*a0), gp_Dir(*n))
+        half_space = BRepPrimAPI_MakeBox(ax, 2 * big, 2 * big + prof.height, 4 * big).Shape()
         section = BRepAlgoAPI_Common(section, half_space).Shape()
     ring = _revolve(section, axis_pt, max(-2 * math.pi, min(2 * math.pi, theta)))
     return fuse_all([placed_tool(tool, p0, seam), ring, placed_tool(tool, p1, seam)])

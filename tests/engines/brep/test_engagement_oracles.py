@@ -1,0 +1,135 @@
+"""Engagement angles against closed forms (Altintas immersion convention, see model.angles)."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.brep.engine import BRepEngine
+from fusioncut.model import (BallEndMill, BoxStock, CLStatus, FlatEndMill, LinearMove, SpindleDirection,
+                             Toolpath)
+
+MID_PASS_TOL = 0.005  # degrees, the issue's bound mid-pass
+CORNER_TOL = 0.02  # degrees, at corners
+
+
+def run(moves, tools, stock, **opts):
+    eng = BRepEngine(EngineOptions(**opts))
+    out = list(eng.run(Toolpath(tuple(moves), tools), stock))
+    return eng, out
+
+
+def rot(p, ang_deg, about=(0.0, 0.0)):
+    a = math.radians(ang_deg)
+    x, y = p[0] - about[0], p[1] - about[1]
+    return (about[0] + x * math.cos(a) - y * math.sin(a), about[1] + x * math.sin(a) + y * math.cos(a), p[2])
+
+
+def feed(p0, p1, tool=1):
+    return LinearMove(p0, p1, feed=600.0, tool=tool)
+
+
+@pytest.mark.parametrize("feed_angle", [0.0, 37.0, 180.0])
+def test_full_slot_is_one_interval_0_180_on_every_engaged_slice(feed_angle):
+    tool = FlatEndMill(10, 20)
+    stock = BoxStock((-60, -60, -20), (60, 60, 0))
+    p0, p1 = rot((-80, 0, -3.0), feed_angle), rot((0, 0, -3.0), feed_angle)
+    _, maps = run([feed(p0, p1)], {1: tool}, stock, max_segment_length=20.0)
+    last = maps[-1]
+    assert last.status == CLStatus.ENGAGED
+    assert len(last.engaged_slices) == 3  # ap = 3 mm at 1 mm slices
+    for s in last.engaged_slices:
+        assert len(s.intervals) == 1
+        assert s.intervals[0].entry == pytest.approx(0.0, abs=MID_PASS_TOL)
+        assert s.intervals[0].exit == pytest.approx(180.0, abs=MID_PASS_TOL)
+    assert last.ap == pytest.approx(3.0, abs=1e-9)
+    assert last.ae == pytest.approx(10.0, abs=1e-6)
+    # front half of the cylinder over the axial depth
+    assert last.contact_area == pytest.approx(math.pi * 5 * 3, rel=1e-6)
+    assert last.removed_volume == pytest.approx(10 * 20 * 3, rel=1e-9)
+
+
+@pytest.mark.parametrize("ae", [1.0, 2.5, 5.0, 8.0])
+@pytest.mark.parametrize("side", ["up", "down"])
+@pytest.mark.parametrize("spindle", [SpindleDirection.CW, SpindleDirection.CCW])
+def test_up_and_down_milling_with_radial_depth(ae, side, spindle):
+    R = 5.0
+    tool = FlatEndMill(2 * R, 20, spindle=spindle)
+    # material on +y of a +x feed: up-milling for a CW spindle, down-milling for CCW
+    material_on_plus_y = (side == "up") == (spindle == SpindleDirection.CW)
+    if material_on_plus_y:
+        stock = BoxStock((-50, R - ae, -20), (50, 40, 0))
+    else:
+        stock = BoxStock((-50, -40, -20), (50, -R + ae, 0))
+    _, maps = run([feed((-70, 0, -4), (0, 0, -4))], {1: tool}, stock, max_segment_length=10.0)
+    last = maps[-1]
+    phi = math.degrees(math.acos(1 - ae / R))
+    expected = (0.0, phi) if side == "up" else (180.0 - phi, 180.0)
+    assert len(last.engaged_slices) == 4
+    for s in last.engaged_slices:
+        assert len(s.intervals) == 1
+        assert s.intervals[0].entry == pytest.approx(expected[0], abs=MID_PASS_TOL)
+        assert s.intervals[0].exit == pytest.approx(expected[1], abs=MID_PASS_TOL)
+    assert last.ae == pytest.approx(ae, abs=1e-6)
+
+
+def test_ball_end_slot_follows_the_sphere_per_slice():
+    R, depth = 5.0, 3.0
+    tool = BallEndMill(2 * R, 20)
+    stock = BoxStock((-60, -20, -20), (60, 20, 0))
+    _, maps = run([feed((-80, 0, -depth), (0, 0, -depth))], {1: tool}, stock, max_segment_length=20.0,
+                  slice_height=0.2)
+    last = maps[-1]
+    engaged = last.engaged_slices
+    assert len(engaged) == round(depth / 0.2)
+    for s in engaged:
+        r = math.sqrt(R**2 - (R - s.z) ** 2)
+        assert s.radius == pytest.approx(r, abs=1e-12)
+        assert len(s.intervals) == 1
+        assert s.intervals[0].entry == pytest.approx(0.0, abs=MID_PASS_TOL)
+        assert s.intervals[0].exit == pytest.approx(180.0, abs=MID_PASS_TOL)
+        assert s.radial_width == pytest.approx(2 * r, abs=1e-9)
+    # the front half of a spherical zone of height `depth`: pi * R * depth
+    assert last.contact_area == pytest.approx(math.pi * R * depth, rel=1e-6)
+    assert last.ap == pytest.approx(depth, abs=1e-9)
+
+
+def test_tool_meeting_two_separate_regions_gives_two_intervals():
+    """A 10 mm tool follows a 4 mm slot that ends in a half circle.
+
+    Mid-slot, the slot walls y = 25 +- 2 cut the tool circle: line-circle, [0, acos(2/5)] and
+    [180 - acos(2/5), 180]. Near the slot's round end (centre (40, 25), r = 2) with the tool at
+    x = 36: circle-circle, the gap is where |p - (40, 25)| <= 2, i.e. sin(phi) >= 37/40.
+    """
+    big, small = FlatEndMill(10, 20), FlatEndMill(4, 20)
+    stock = BoxStock((0, 0, -20), (100, 50, 0))
+    moves = [feed((-10, 25, -3), (40, 25, -3), tool=2), LinearMove((40, 25, -3), (40, 25, 10), tool=2, rapid=True),
+             LinearMove((-10, 25, 10), (-10, 25, -3), tool=1, rapid=True),
+             feed((-10, 25, -3), (20, 25, -3), tool=1), feed((20, 25, -3), (36, 25, -3), tool=1)]
+    _, maps = run(moves, {1: big, 2: small}, stock)
+    mid, corner = maps[-2], maps[-1]
+    a = math.degrees(math.acos(2 / 5))
+    for s in mid.engaged_slices:
+        got = [(iv.entry, iv.exit) for iv in s.intervals]
+        assert len(got) == 2
+        for g, e in zip(got, [(0.0, a), (180 - a, 180.0)]):
+            assert g == pytest.approx(e, abs=MID_PASS_TOL)
+    b = math.degrees(math.asin(37 / 40))
+    for s in corner.engaged_slices:
+        got = [(iv.entry, iv.exit) for iv in s.intervals]
+        assert len(got) == 2
+        for g, e in zip(got, [(0.0, b), (180 - b, 180.0)]):
+            assert g == pytest.approx(e, abs=CORNER_TOL)
+
+
+def test_volume_is_conserved_over_a_mixed_program():
+    tool = FlatEndMill(8, 20)
+    ball = BallEndMill(6, 20)
+    stock = BoxStock((0, 0, -15), (60, 40, 0))
+    moves = [feed((-5, 10, -2), (65, 10, -2)), feed((65, 10, -2), (65, 30, -2)), feed((65, 30, -2), (-5, 30, -4)),
+             feed((20, 20, 5), (20, 20, -6)), feed((20, 20, -6), (40, 20, -6), tool=2)]
+    eng, maps = run(moves, {1: tool, 2: ball}, stock, max_segment_length=7.0)
+    removed = sum(m.removed_volume for m in maps)
+    assert all(m.status != CLStatus.FAILED for m in maps)
+    assert stock.volume - eng.ipw_volume == pytest.approx(removed, rel=1e-6)
