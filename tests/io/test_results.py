@@ -1,0 +1,343 @@
+"""Result tables: values, dtypes and units round-trip; CSV == Parquet; interrupted writers stay loadable.
+
+Engagement maps are built by hand (no geometry engine) with intervals whose derived numbers (ae,
+machine angles, MRR) are known in closed form.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from fusioncut import __version__
+from fusioncut.errors import FusionCutError, SourceLocation
+from fusioncut.io import results as res
+from fusioncut.io.results import CL_COLUMNS, SLICE_COLUMNS, SUMMARY_COLUMNS, ResultWriter, load_results
+from fusioncut.model import AngleInterval, CLStatus, EngagementMap, SliceEngagement, SpindleDirection
+
+R = 5.0  # tool radius, mm
+
+
+def slices(intervals: list[tuple[float, float]], n: int = 3, dz: float = 0.5, z_tip: float = -2.0,
+           radius: float = R) -> tuple[SliceEngagement, ...]:
+    """``n`` slices ``dz`` apart from the tip, all with the same intervals (immersion deg)."""
+    return tuple(
+        SliceEngagement(z=dz * k, z_machine=z_tip + dz * k, radius=radius,
+                        intervals=tuple(AngleInterval(a, b) for a, b in intervals))
+        for k in range(n)
+    )
+
+
+def make_em(i: int, status: CLStatus = CLStatus.ENGAGED, intervals=((0.0, 60.0),), *, op: str = "rough",
+            feed: float | None = 600.0, spindle=SpindleDirection.CW, feed_angle: float = 0.0,
+            step: float = 2.0, removed: float = 1.5, **kw) -> EngagementMap:
+    """CL ``i`` moving ``step`` mm along +X at z = -2, ending at x = i * step."""
+    sl = slices(list(intervals)) if intervals else ()
+    return EngagementMap(
+        cl_index=i, position=(step * i, 1.0, -2.0), start=(step * (i - 1), 1.0, -2.0), tool=kw.pop("tool", "T1"),
+        spindle=spindle, feed_angle=feed_angle, status=status,
+        source=kw.pop("source", SourceLocation("prog.nc", 10 + i, 3)), feed=feed, operation=op, slices=sl,
+        removed_volume=removed if intervals else 0.0, axial_range=(0.0, 1.0) if intervals else (0.0, 0.0),
+        timings_ms=(("sweep", 2.0), ("boolean", 0.5 + i)), sweep_method="exact" if intervals else "", **kw,
+    )
+
+
+def program() -> list[EngagementMap]:
+    """A small program exercising every status, both spindles, wrap-around arcs and awkward text."""
+    return [
+        make_em(0, CLStatus.RAPID, None, op="", feed=None, warnings=("rapid move hits the stock",)),
+        make_em(1),  # up-milling (0, 60): ae = R (1 - cos 60) = 2.5
+        make_em(2, intervals=((1.0 / 3.0, 0.1 + 0.2 + 90.0), (170.0, 180.0))),
+        make_em(3, CLStatus.AIR, None, removed=0.0),
+        make_em(4, intervals=((330.0, 370.0),), spindle=SpindleDirection.CCW, feed_angle=90.0, op="finish",
+                source=SourceLocation("dir, with comma/ü \"q\".nc", 7, 1)),
+        make_em(5, CLStatus.FAILED, None, op="finish", reason='boolean failed, "tangent" faces\nsecond line'),
+        make_em(6, intervals=((0.0, 180.0),), op="finish", feed=1e-12, tool="T2 ball"),
+    ]
+
+
+def write(path, ems, **kw) -> None:
+    with ResultWriter(path, **kw) as w:
+        for em in ems:
+            w.add(em)
+
+
+@pytest.fixture
+def written(tmp_path):
+    ems = program()
+    write(tmp_path, ems, job_hash="abc123", batch_size=3, max_io_fraction=None,
+          expected_cls={"": 1, "rough": 4, "finish": 3, "drill": 10},
+          tools={"T1": {"kind": "flat", "diameter_mm": 10.0}})
+    return tmp_path, ems
+
+
+# ---------------------------------------------------------------------------------------------------
+
+
+def test_cl_values_round_trip(written):
+    path, ems = written
+    cl = load_results(path).cl
+    assert list(cl["cl"]) == [em.cl_index for em in ems]
+    for em, (_, row) in zip(ems, cl.iterrows()):
+        assert (row["x"], row["y"], row["z"]) == em.position
+        assert (row["x0"], row["y0"], row["z0"]) == em.start
+        assert row["file"] == em.source.file and row["line"] == em.source.line
+        assert row["operation"] == em.operation and row["tool"] == em.tool
+        assert row["status"] == em.status.value and row["reason"] == em.reason
+        assert row["spindle"] == em.spindle.value
+        assert row["feed_angle_machine_deg"] == em.feed_angle
+        assert row["length_mm"] == 2.0  # chord of a straight 2 mm step
+        assert row["time_ms"] == 2.0 + 0.5 + em.cl_index
+        assert row["removed_volume_mm3"] == em.removed_volume
+        assert row["ap_mm"] == em.ap
+
+    by = cl.set_index("cl")
+    # closed forms: up-milling (0, 60) on R = 5 has ae = R (1 - cos 60) = 2.5 mm
+    assert by.loc[1, "ae_mm"] == pytest.approx(2.5, rel=1e-12)
+    assert by.loc[6, "ae_mm"] == pytest.approx(2 * R, rel=1e-12)  # slot
+    assert by.loc[2, ["entry_min_deg", "entry_max_deg", "exit_min_deg", "exit_max_deg"]].tolist() == [
+        1.0 / 3.0, 170.0, 0.1 + 0.2 + 90.0, 180.0]
+    assert by.loc[4, "exit_max_deg"] == 370.0
+    # MRR = V * feed / length; NaN where it means nothing
+    assert by.loc[1, "mrr_mm3_min"] == 1.5 * 600.0 / 2.0
+    assert by.loc[6, "mrr_mm3_min"] == 1.5 * 1e-12 / 2.0
+    assert math.isnan(by.loc[0, "mrr_mm3_min"])  # rapid
+    assert math.isnan(by.loc[5, "mrr_mm3_min"])  # failed
+    assert by.loc[3, "mrr_mm3_min"] == 0.0  # air: a real zero
+    assert math.isnan(by.loc[0, "feed_mm_min"])
+    for c in ("entry_min_deg", "entry_max_deg", "exit_min_deg", "exit_max_deg"):
+        assert by.loc[[0, 3, 5], c].isna().all()
+    assert by.loc[0, "warnings"] == "rapid move hits the stock"
+    assert by.loc[5, "reason"].endswith("second line")
+
+
+def test_slice_values_and_machine_angles(written):
+    path, ems = written
+    sl = load_results(path).slices
+    assert len(sl) == sum(len(s.intervals) for em in ems for s in em.slices)
+    cl1 = sl[sl["cl"] == 1]
+    assert cl1["z_tool_mm"].tolist() == [0.0, 0.5, 1.0]
+    assert cl1["z_machine_mm"].tolist() == [-2.0, -1.5, -1.0]
+    assert (cl1["radius_mm"] == R).all() and (cl1["interval"] == 0).all()
+    assert (cl1["entry_deg"] == 0.0).all() and (cl1["exit_deg"] == 60.0).all()
+    # CW spindle, feed +X: immersion phi sits at machine 90 - phi, so (0, 60) covers machine 30..90
+    assert (cl1["entry_machine_deg"] == 30.0).all() and (cl1["exit_machine_deg"] == 90.0).all()
+    # CCW spindle, feed +Y: machine = phi, counter-clockwise; the wrapped arc stays one interval
+    cl4 = sl[sl["cl"] == 4]
+    assert (cl4["entry_machine_deg"] == 330.0).all() and (cl4["exit_machine_deg"] == 370.0).all()
+    cl2 = sl[(sl["cl"] == 2) & (sl["z_tool_mm"] == 0.5)]
+    assert cl2["interval"].tolist() == [0, 1]
+    assert cl2["entry_deg"].tolist() == [1.0 / 3.0, 170.0]
+    assert set(sl["cl"]) == {1, 2, 4, 6}  # CLs without contact have no slice rows
+
+
+def test_dtypes_units_and_metadata(written):
+    path, _ = written
+    r = load_results(path)
+    for df, cols in ((r.cl, CL_COLUMNS), (r.slices, SLICE_COLUMNS), (r.summary, SUMMARY_COLUMNS)):
+        assert list(df.columns) == [c.name for c in cols]
+        for c in cols:
+            want = "category" if c.dtype == "category" else c.dtype
+            assert str(df[c.name].dtype) == want, c.name
+    assert list(r.cl["status"].cat.categories) == [s.value for s in CLStatus]
+
+    for name, cols in (("cl", CL_COLUMNS), ("slices", SLICE_COLUMNS)):
+        schema = pq.read_schema(path / f"{name}.parquet")
+        for c in cols:
+            meta = schema.field(c.name).metadata
+            assert meta[b"unit"].decode() == c.unit
+            if c.unit == "deg":  # every angle says which convention it is in
+                assert meta[b"angle"].decode() == ("machine" if "machine" in c.name else "immersion")
+        meta = json.loads(schema.metadata[b"fusioncut"])
+        assert meta["job_hash"] == "abc123" and meta["fusioncut_version"] == __version__
+        assert meta["tools"] == {"T1": {"kind": "flat", "diameter_mm": 10.0}, "T2 ball": {}}
+        assert "immersion" in meta["angle_convention"] and "machine" in meta["angle_convention"]
+        assert meta["units"]["cl"]["mrr_mm3_min"] == "mm^3/min"
+    assert r.metadata["job_hash"] == "abc123"
+    # CSV readers get the same metadata from metadata.json
+    assert load_results(path, prefer="csv").metadata == r.metadata
+
+
+def test_csv_and_parquet_agree(written):
+    path, _ = written
+    p, c = load_results(path), load_results(path, prefer="csv")
+    assert (p.source, c.source) == ("parquet", "csv")
+    pd.testing.assert_frame_equal(p.cl, c.cl, check_exact=True)
+    pd.testing.assert_frame_equal(p.slices, c.slices, check_exact=True)
+
+
+def test_csv_floats_are_exact(tmp_path):
+    # values with no short decimal form must survive the text format bit for bit
+    rng = np.random.default_rng(7)
+    ems = [make_em(i, intervals=((float(a), float(a + b)),), removed=float(v))
+           for i, (a, b, v) in enumerate(zip(rng.uniform(0, 359, 40), rng.uniform(1e-9, 300, 40),
+                                             rng.lognormal(0, 8, 40)))]
+    write(tmp_path, ems, batch_size=7, max_io_fraction=None)
+    p, c = load_results(tmp_path), load_results(tmp_path, prefer="csv")
+    pd.testing.assert_frame_equal(p.cl, c.cl, check_exact=True)
+    pd.testing.assert_frame_equal(p.slices, c.slices, check_exact=True)
+    assert c.cl["removed_volume_mm3"].tolist() == [em.removed_volume for em in ems]
+
+
+def test_summary(written):
+    path, _ = written
+    s = load_results(path).summary.set_index("operation")
+    assert list(s.index) == ["", "rough", "finish", "drill"]  # first appearance, then expected-only
+    assert s.loc["rough", ["cls", "processed", "engaged", "air", "rapid", "failed"]].tolist() == [4, 3, 2, 1, 0, 0]
+    assert s.loc["finish", ["cls", "processed", "engaged", "failed"]].tolist() == [3, 3, 2, 1]
+    assert s.loc["", "rapid"] == 1
+    assert s.loc["drill", ["cls", "processed"]].tolist() == [10, 0]  # not started: visible as missing
+    assert s.loc["rough", "volume_removed_mm3"] == 3.0
+    assert s.loc["rough", "time_s"] == pytest.approx((2.5 + 1 + 2.5 + 2 + 2.5 + 3) / 1000.0)
+    # CL 2 spans immersion 1/3 .. 180 deg: ae = R (cos(1/3 deg) - cos(180 deg))
+    assert s.loc["rough", "max_ae_mm"] == pytest.approx(R * (math.cos(math.radians(1 / 3)) + 1), rel=1e-12)
+    assert s.loc["finish", "max_ap_mm"] == 1.0
+
+
+def test_writer_flushes_in_batches(tmp_path):
+    ems = program()
+    w = ResultWriter(tmp_path, batch_size=2, max_io_fraction=None)
+    assert len(load_results(tmp_path).cl) == 0  # loadable (and empty) before the first CL
+    seen = []
+    for em in ems:
+        w.add(em)
+        seen.append(len(load_results(tmp_path).cl))
+    assert seen == [0, 2, 2, 4, 4, 6, 6]
+    assert (w.written, w.pending) == (6, 1)
+    w.close()
+    assert len(load_results(tmp_path).cl) == 7
+    with pytest.raises(ValueError):
+        w.add(ems[0])
+
+
+def test_unclosed_writer_leaves_consistent_files(tmp_path):
+    # the process "dies" without close(): every completed batch is on disk, CSV and Parquet agree,
+    # and every CL in the cl table has its slices
+    ems = program()
+    w = ResultWriter(tmp_path, batch_size=3, max_io_fraction=None)
+    for em in ems:
+        w.add(em)
+    p, c = load_results(tmp_path), load_results(tmp_path, prefer="csv")
+    assert p.cl["cl"].tolist() == [0, 1, 2, 3, 4, 5]
+    pd.testing.assert_frame_equal(p.cl, c.cl, check_exact=True)
+    pd.testing.assert_frame_equal(p.slices, c.slices, check_exact=True)
+    assert set(p.slices["cl"]) == {1, 2, 4}
+    assert not [f for f in os.listdir(tmp_path) if f.endswith(".tmp")]
+    del w
+
+
+@pytest.mark.parametrize("exc", [RuntimeError, KeyboardInterrupt])
+def test_exception_mid_run_flushes_everything_added(tmp_path, exc):
+    ems = program()
+    with pytest.raises(exc):
+        with ResultWriter(tmp_path, batch_size=100) as w:
+            for em in ems[:5]:
+                w.add(em)
+            raise exc("interrupted")
+    r = load_results(tmp_path)
+    assert r.cl["cl"].tolist() == [0, 1, 2, 3, 4]
+    assert set(r.slices["cl"]) == {1, 2, 4}
+    pd.testing.assert_frame_equal(r.cl, load_results(tmp_path, prefer="csv").cl, check_exact=True)
+
+
+def test_crash_while_writing_keeps_previous_files(tmp_path, monkeypatch):
+    ems = program()
+    w = ResultWriter(tmp_path, batch_size=2, max_io_fraction=None)
+    for em in ems[:2]:
+        w.add(em)
+    before = {f: (tmp_path / f).read_bytes() for f in ("cl.csv", "cl.parquet", "slices.csv", "slices.parquet")}
+
+    real = pq.write_table
+
+    def dies_half_way(table, where, **kw):  # writes some bytes, then the "power goes"
+        where.write(b"PAR1 partial garbage")
+        raise OSError("disk vanished")
+
+    monkeypatch.setattr(res.pq, "write_table", dies_half_way)
+    w.add(ems[2])
+    with pytest.raises(OSError):
+        w.add(ems[3])
+    # the Parquet files are untouched and still hold the first batch; no temporary file is left
+    assert (tmp_path / "cl.parquet").read_bytes() == before["cl.parquet"]
+    assert (tmp_path / "slices.parquet").read_bytes() == before["slices.parquet"]
+    assert load_results(tmp_path).cl["cl"].tolist() == [0, 1]
+    assert not [f for f in os.listdir(tmp_path) if f.endswith(".tmp")]
+
+    # the pending CLs were kept: once the disk is back, a flush writes them and nothing twice
+    monkeypatch.setattr(res.pq, "write_table", real)
+    w.close()
+    p, c = load_results(tmp_path), load_results(tmp_path, prefer="csv")
+    assert p.cl["cl"].tolist() == [0, 1, 2, 3]
+    # the CSV of the failed flush was already replaced before the Parquet write died; the retry must
+    # not append its rows a second time
+    assert c.cl["cl"].tolist() == [0, 1, 2, 3]
+    pd.testing.assert_frame_equal(p.slices, c.slices, check_exact=True)
+
+
+def test_io_throttle_postpones_but_never_loses(tmp_path, monkeypatch):
+    class Clock:  # every reading advances one second: each flush "takes" one second
+        t = 0.0
+
+        def monotonic(self) -> float:
+            self.t += 1.0
+            return self.t
+
+    monkeypatch.setattr(res, "time", Clock())
+    w = ResultWriter(tmp_path, batch_size=2, max_io_fraction=0.25)
+    written = []
+    for i in range(12):
+        w.add(make_em(i))
+        written.append(w.written)
+    assert written[1] == 2  # the first batch always goes out
+    assert written[3] == 2  # due, but only 1 s after a 1 s flush: postponed (25 % I/O at most)
+    steps = np.diff([0] + written)
+    assert steps.max() > 2  # a later flush carries the postponed batch along with its own
+    assert w.written + w.pending == 12
+    w.close()
+    assert load_results(tmp_path).cl["cl"].tolist() == list(range(12))
+
+
+def test_new_writer_replaces_old_results(tmp_path):
+    write(tmp_path, program())
+    ResultWriter(tmp_path)  # a new job in the same directory, nothing added yet
+    r = load_results(tmp_path)
+    assert len(r.cl) == 0 and len(r.slices) == 0 and len(r.summary) == 0
+
+
+def test_explicit_path_length_for_arcs(tmp_path):
+    with ResultWriter(tmp_path) as w:
+        w.add(make_em(1), length_mm=math.pi)  # e.g. a half circle of radius 1 between the points
+    row = load_results(tmp_path).cl.iloc[0]
+    assert row["length_mm"] == math.pi
+    assert row["mrr_mm3_min"] == 1.5 * 600.0 / math.pi
+
+
+def test_csv_only_directory_loads(tmp_path, written):
+    path, _ = written
+    for f in ("cl.parquet", "slices.parquet"):
+        (path / f).unlink()
+    r = load_results(path)
+    assert r.source == "csv" and len(r.cl) == 7
+
+
+def test_load_errors_are_fusioncut_errors(tmp_path):
+    with pytest.raises(FusionCutError, match="not found"):
+        load_results(tmp_path / "missing")
+    with pytest.raises(FusionCutError, match="no cl.parquet or cl.csv"):
+        load_results(tmp_path)
+    with pytest.raises(ValueError):
+        ResultWriter(tmp_path, batch_size=0)
+
+
+def test_row_lookup(written):
+    path, _ = written
+    r = load_results(path)
+    assert r.row(4)["operation"] == "finish"
+    assert r.slices_of(2)["z_tool_mm"].is_monotonic_increasing
+    with pytest.raises(FusionCutError, match="CL 99 is not in the results"):
+        r.row(99)
