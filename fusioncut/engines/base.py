@@ -17,7 +17,7 @@ class EngineOptions:
     """Knobs of a run (mm unless stated).
 
     ``slice_height``: axial slice spacing; slice k covers [k, k+1)*slice_height above the tip and is
-    evaluated at its middle. ``max_segment_length``: longer moves are split into CL segments of at most
+    evaluated in the middle of its part that touches material. ``max_segment_length``: longer moves are split into CL segments of at most
     this length (None: as programmed). ``chord_tolerance``: helices / ZX / YZ arcs become chords within
     this distance of the path. ``sweep``: "exact" or "sampled" (tool copies every R/4, the published
     method). ``failure_dir``: where the shapes of a failed Boolean are saved as .brep.

@@ -21,7 +21,7 @@ from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve2d, BRepAdaptor_Surface
 from OCP.BRepTools import BRepTools
 from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Line, GeomAbs_Sphere, GeomAbs_Torus
-from OCP.TopAbs import TopAbs_EDGE, TopAbs_REVERSED
+from OCP.TopAbs import TopAbs_EDGE
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Face
 
@@ -139,6 +139,12 @@ def _v_of_z(surf: BRepAdaptor_Surface, z: float, vmin: float, vmax: float) -> fl
     return None
 
 
+def _snap(x: float, v: float) -> float:
+    # shared vertices must compare alike from both of their edges, so values within the parameter
+    # tolerance of the scan line count as on it
+    return v if abs(x - v) < 1e-10 else x
+
+
 def _crossings(face: TopoDS_Face, v: float) -> list[float]:
     """Sorted ``u`` where the face boundary crosses ``v`` (half-open rule at vertices)."""
     us: list[float] = []
@@ -152,7 +158,7 @@ def _crossings(face: TopoDS_Face, v: float) -> list[float]:
         f, l = ad.FirstParameter(), ad.LastParameter()
         if ad.GetType() == GeomAbs_Line:
             p0, p1 = ad.Value(f), ad.Value(l)
-            va, vb = p0.Y(), p1.Y()
+            va, vb = _snap(p0.Y(), v), _snap(p1.Y(), v)
             if (va < v <= vb) or (vb < v <= va):
                 s = (v - va) / (vb - va)
                 us.append(p0.X() + s * (p1.X() - p0.X()))
@@ -161,7 +167,7 @@ def _crossings(face: TopoDS_Face, v: float) -> list[float]:
         ts = [f + (l - f) * k / n for k in range(n + 1)]
         pts = [ad.Value(t) for t in ts]
         for k in range(n):
-            va, vb = pts[k].Y(), pts[k + 1].Y()
+            va, vb = _snap(pts[k].Y(), v), _snap(pts[k + 1].Y(), v)
             if (va < v <= vb) or (vb < v <= va):
                 lo, hi = ts[k], ts[k + 1]
                 flo = va - v
@@ -219,8 +225,15 @@ def slice_intervals(contacts: list[ContactFace], tip: tuple[float, float, float]
             continue
         us = _crossings(face, v)
         if len(us) % 2:
-            raise RuntimeError(f"odd number ({len(us)}) of boundary crossings on a contact face at z={z:.4f}")
-        reversed_face = face.Orientation() == TopAbs_REVERSED
+            # the scan line grazes a vertex or a boundary edge: look a hair away from it
+            for dz in (1e-7, -1e-7):
+                v2 = _v_of_z(surf, tip[2] + z + dz, vmin, vmax)
+                us = _crossings(face, v2) if v2 is not None else us
+                if len(us) % 2 == 0:
+                    v = v2
+                    break
+            else:
+                raise RuntimeError(f"odd number ({len(us)}) of boundary crossings on a contact face at z={z:.4f}")
         for k in range(0, len(us), 2):
             ua, ub = us[k], us[k + 1]
             if ub - ua < 1e-12:
@@ -234,7 +247,6 @@ def slice_intervals(contacts: list[ContactFace], tip: tuple[float, float, float]
             ccw = abs(math.remainder(ta + 0.5 * span - tm, TWO_PI)) < 1e-6
             start = ta if ccw else ta - span
             arcs.append((start % TWO_PI, span))
-        del reversed_face
     return merge_arcs(arcs)
 
 

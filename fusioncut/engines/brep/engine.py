@@ -195,8 +195,11 @@ class BRepEngine:
         n_slices = math.ceil(min(z_hi, tool.flute_length) / dz - 1e-9)
         slices = []
         for k in range(n_slices):
-            z = (k + 0.5) * dz
-            arcs = slice_intervals(flute, move.end, z) if z_lo < z < z_hi else []
+            # a band [k, k+1)*dz is evaluated in the middle of its part in contact, so a shallow cut
+            # (ap < dz/2) still gets its slice and the height never sits on the material's edge
+            lo, hi = max(k * dz, z_lo), min((k + 1) * dz, z_hi)
+            z = 0.5 * (lo + hi) if hi > lo else (k + 0.5) * dz
+            arcs = slice_intervals(flute, move.end, z) if hi > lo else []
             intervals = tuple(sorted(_immersion(a, w, base["feed_angle"], tool.spindle) for a, w in arcs))
             slices.append(SliceEngagement(z=z, z_machine=move.end[2] + z, radius=profile.radius_at(z),
                                           intervals=tuple(AngleInterval(e, x) for e, x in intervals)))

@@ -1,0 +1,678 @@
+"""Result tables: what FusionCut writes for a job, written incrementally and read back.
+
+A results directory holds
+
+* ``cl.parquet`` / ``cl.csv`` — one row per cutter location (CL segment),
+* ``slices.parquet`` / ``slices.csv`` — one row per engaged arc (slice x interval),
+* ``summary.csv`` — one row per operation,
+* ``metadata.json`` — units, angle convention, tools, FusionCut version and job hash (the same JSON is
+  stored in the Parquet schema metadata under the key ``fusioncut``; every Parquet field also carries
+  its own ``unit`` and ``description``).
+
+The CSV and Parquet files hold the same values: floats are written at full round-trip precision, an
+empty CSV cell in a float column is NaN, and an empty cell in a text column is the empty string.
+
+Angles are degrees. Columns named ``*_deg`` without ``machine`` are **immersion** angles (measured from
++y of the feed frame in the sense the teeth turn, see :mod:`fusioncut.model.angles`); columns named
+``*_machine_deg`` are **machine** angles (counter-clockwise from +X seen from +Z). Heights ``z_tool_mm``
+are measured along the tool axis from the tool tip at the CL.
+
+``cl`` table (one row per CL, in the order the engine delivered them)
+---------------------------------------------------------------------
+
+======================== ========= ======== ================================================================
+column                   dtype     unit     meaning
+======================== ========= ======== ================================================================
+cl                       int64     -        CL index (0-based, program order)
+operation                string    -        operation (program section) the move belongs to
+file                     string    -        source file of the move
+line                     int64     -        1-based source line (0: unknown)
+tool                     string    -        tool label (name, ``T<n>`` or kind)
+spindle                  string    -        spindle sense: ``cw`` (M3) or ``ccw`` (M4)
+x, y, z                  float64   mm       CL point (tool tip) at the end of the segment, machine frame
+x0, y0, z0               float64   mm       CL point at the start of the segment, machine frame
+feed_angle_machine_deg   float64   deg      machine angle of the horizontal feed direction (immersion frame)
+feed_mm_min              float64   mm/min   programmed feed; NaN for rapids and unknown feeds
+length_mm                float64   mm       path length of the segment (arc length for arcs)
+status                   category  -        ``engaged``, ``air``, ``rapid`` or ``failed``
+reason                   string    -        why a CL failed (empty otherwise)
+warnings                 string    -        engine warnings, joined with `` | ``
+ap_mm                    float64   mm       axial depth of cut (height range of flute contact)
+ae_mm                    float64   mm       radial depth of cut (largest slice radial width)
+entry_min_deg            float64   deg      smallest entry angle over all slices (immersion); NaN: no contact
+entry_max_deg            float64   deg      largest entry angle over all slices (immersion)
+exit_min_deg             float64   deg      smallest exit angle over all slices (immersion)
+exit_max_deg             float64   deg      largest exit angle over all slices (immersion)
+contact_area_mm2         float64   mm²      flute contact area
+shank_contact_area_mm2   float64   mm²      shank contact area (rubbing, not cutting)
+removed_volume_mm3       float64   mm³      material removed by the segment
+mrr_mm3_min              float64   mm³/min  removed volume / (length / feed); NaN for rapids, failed CLs,
+                                            unknown feed or zero length
+sweep_method             string    -        how the swept volume was built
+time_ms                  float64   ms       engine compute time of the CL (sum of its timings)
+======================== ========= ======== ================================================================
+
+``slices`` table (one row per engaged arc; slices without contact have no rows)
+--------------------------------------------------------------------------------
+
+================== ======= ==== ==========================================================================
+column             dtype   unit meaning
+================== ======= ==== ==========================================================================
+cl                 int64   -    CL index (joins the ``cl`` table)
+z_tool_mm          float64 mm   slice height above the tool tip, along the tool axis
+z_machine_mm       float64 mm   the same height in the machine frame
+radius_mm          float64 mm   tool radius at that height
+interval           int64   -    0-based index of the arc within its slice
+entry_deg          float64 deg  immersion angle where the tooth enters (0 <= entry < 360)
+exit_deg           float64 deg  immersion angle where the tooth leaves (entry < exit <= entry + 360)
+entry_machine_deg  float64 deg  machine angle where the arc starts counter-clockwise (0 <= . < 360)
+exit_machine_deg   float64 deg  machine angle where the arc ends counter-clockwise (entry_machine < .
+                                <= entry_machine + 360)
+================== ======= ==== ==========================================================================
+
+The machine columns follow the project's machine-interval convention (counter-clockwise bounds,
+:func:`fusioncut.model.engagement.EngagementMap.machine_intervals`): for a counter-clockwise (M4)
+spindle the tooth enters at ``entry_machine_deg``; for a clockwise (M3) spindle it enters at
+``exit_machine_deg`` (mod 360) and leaves at ``entry_machine_deg``.
+
+``summary`` table (one row per operation, in order of first appearance)
+-----------------------------------------------------------------------
+
+==================== ======= ==== ===============================================================
+column               dtype   unit meaning
+==================== ======= ==== ===============================================================
+operation            string  -    operation name
+cls                  int64   -    CLs of the operation (the caller's expected count, else processed)
+processed            int64   -    CLs with a result written
+engaged              int64   -    CLs with status ``engaged``
+air                  int64   -    CLs with status ``air``
+rapid                int64   -    CLs with status ``rapid``
+failed               int64   -    CLs with status ``failed``
+time_s               float64 s    engine compute time (sum of ``time_ms``)
+volume_removed_mm3   float64 mm³  sum of ``removed_volume_mm3``
+max_ae_mm            float64 mm   largest ``ae_mm``
+max_ap_mm            float64 mm   largest ``ap_mm``
+==================== ======= ==== ===============================================================
+
+Writing is incremental and crash-safe: :class:`ResultWriter` appends CLs in memory and flushes them in
+batches; every file is written to a temporary file in the same directory and moved into place with
+``os.replace``, so a reader (or an interrupted run) only ever sees complete files. The slice files are
+replaced before the CL files, so every CL present in ``cl.*`` has its slices on disk.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from fusioncut import __version__
+from fusioncut.errors import InputError
+from fusioncut.model.engagement import CLStatus, EngagementMap
+
+FORMAT_NAME = "fusioncut-results"
+FORMAT_VERSION = 1
+METADATA_KEY = b"fusioncut"
+
+ANGLE_CONVENTION = (
+    "Angles in degrees. Columns *_deg without 'machine' are immersion angles: in the feed frame (feed "
+    "+x, tool axis +z) measured from +y in the sense the teeth turn (up-milling [0, arccos(1-ae/R)], "
+    "down-milling [180-arccos(1-ae/R), 180], slot [0, 180]); an interval satisfies 0 <= entry < 360 "
+    "and entry < exit <= entry + 360. Columns *_machine_deg are machine angles: counter-clockwise from "
+    "+X seen from +Z; a machine interval is given counter-clockwise (entry_machine < exit_machine), so "
+    "for a CW (M3) spindle the tooth enters at exit_machine_deg. See fusioncut.model.angles."
+)
+
+STATUS_CATEGORIES = [s.value for s in CLStatus]
+
+
+class Column(NamedTuple):
+    """One documented column: ``dtype`` is the pandas dtype after :func:`load_results`."""
+
+    name: str
+    dtype: str  # "int64" | "float64" | "string" | "category"
+    unit: str  # "" for dimensionless / text
+    description: str
+
+
+def _c(name: str, dtype: str, unit: str, description: str) -> Column:
+    return Column(name, dtype, unit, description)
+
+
+CL_COLUMNS: tuple[Column, ...] = (
+    _c("cl", "int64", "", "CL index (0-based, program order)"),
+    _c("operation", "string", "", "operation the move belongs to"),
+    _c("file", "string", "", "source file of the move"),
+    _c("line", "int64", "", "1-based source line (0: unknown)"),
+    _c("tool", "string", "", "tool label"),
+    _c("spindle", "string", "", "spindle sense: cw (M3) or ccw (M4)"),
+    _c("x", "float64", "mm", "CL point (tool tip) at the end of the segment, machine frame"),
+    _c("y", "float64", "mm", "CL point (tool tip) at the end of the segment, machine frame"),
+    _c("z", "float64", "mm", "CL point (tool tip) at the end of the segment, machine frame"),
+    _c("x0", "float64", "mm", "CL point at the start of the segment, machine frame"),
+    _c("y0", "float64", "mm", "CL point at the start of the segment, machine frame"),
+    _c("z0", "float64", "mm", "CL point at the start of the segment, machine frame"),
+    _c("feed_angle_machine_deg", "float64", "deg", "machine angle of the horizontal feed direction"),
+    _c("feed_mm_min", "float64", "mm/min", "programmed feed; NaN for rapids and unknown feeds"),
+    _c("length_mm", "float64", "mm", "path length of the segment (arc length for arcs)"),
+    _c("status", "category", "", "engaged, air, rapid or failed"),
+    _c("reason", "string", "", "why the CL failed (empty otherwise)"),
+    _c("warnings", "string", "", "engine warnings joined with ' | '"),
+    _c("ap_mm", "float64", "mm", "axial depth of cut"),
+    _c("ae_mm", "float64", "mm", "radial depth of cut (largest slice radial width)"),
+    _c("entry_min_deg", "float64", "deg", "smallest entry angle over all slices (immersion); NaN: no contact"),
+    _c("entry_max_deg", "float64", "deg", "largest entry angle over all slices (immersion)"),
+    _c("exit_min_deg", "float64", "deg", "smallest exit angle over all slices (immersion)"),
+    _c("exit_max_deg", "float64", "deg", "largest exit angle over all slices (immersion)"),
+    _c("contact_area_mm2", "float64", "mm^2", "flute contact area"),
+    _c("shank_contact_area_mm2", "float64", "mm^2", "shank contact area (rubbing, not cutting)"),
+    _c("removed_volume_mm3", "float64", "mm^3", "material removed by the segment"),
+    _c("mrr_mm3_min", "float64", "mm^3/min",
+       "removed volume / (length / feed); NaN for rapids, failed CLs, unknown feed or zero length"),
+    _c("sweep_method", "string", "", "how the swept volume was built"),
+    _c("time_ms", "float64", "ms", "engine compute time of the CL"),
+)
+
+SLICE_COLUMNS: tuple[Column, ...] = (
+    _c("cl", "int64", "", "CL index"),
+    _c("z_tool_mm", "float64", "mm", "slice height above the tool tip along the tool axis"),
+    _c("z_machine_mm", "float64", "mm", "slice height in the machine frame"),
+    _c("radius_mm", "float64", "mm", "tool radius at the slice height"),
+    _c("interval", "int64", "", "0-based index of the arc within its slice"),
+    _c("entry_deg", "float64", "deg", "immersion angle where the tooth enters"),
+    _c("exit_deg", "float64", "deg", "immersion angle where the tooth leaves"),
+    _c("entry_machine_deg", "float64", "deg", "machine angle where the arc starts, counter-clockwise"),
+    _c("exit_machine_deg", "float64", "deg", "machine angle where the arc ends, counter-clockwise"),
+)
+
+SUMMARY_COLUMNS: tuple[Column, ...] = (
+    _c("operation", "string", "", "operation name"),
+    _c("cls", "int64", "", "CLs of the operation (expected count, else processed)"),
+    _c("processed", "int64", "", "CLs with a result written"),
+    _c("engaged", "int64", "", "CLs with status engaged"),
+    _c("air", "int64", "", "CLs with status air"),
+    _c("rapid", "int64", "", "CLs with status rapid"),
+    _c("failed", "int64", "", "CLs with status failed"),
+    _c("time_s", "float64", "s", "engine compute time"),
+    _c("volume_removed_mm3", "float64", "mm^3", "material removed"),
+    _c("max_ae_mm", "float64", "mm", "largest ae"),
+    _c("max_ap_mm", "float64", "mm", "largest ap"),
+)
+
+TABLES: dict[str, tuple[Column, ...]] = {"cl": CL_COLUMNS, "slices": SLICE_COLUMNS, "summary": SUMMARY_COLUMNS}
+
+# Which angle convention each angle column uses; stored in the metadata so no column is ambiguous.
+ANGLE_KIND: dict[str, str] = {
+    **{c.name: "immersion" for c in CL_COLUMNS + SLICE_COLUMNS if c.unit == "deg" and "machine" not in c.name},
+    **{c.name: "machine" for c in CL_COLUMNS + SLICE_COLUMNS if c.unit == "deg" and "machine" in c.name},
+}
+
+_ARROW_TYPES = {"int64": pa.int64(), "float64": pa.float64(), "string": pa.string(), "category": pa.string()}
+
+
+def _arrow_schema(columns: tuple[Column, ...], metadata: Mapping[str, Any]) -> pa.Schema:
+    fields = []
+    for c in columns:
+        meta = {"unit": c.unit, "description": c.description}
+        if c.name in ANGLE_KIND:
+            meta["angle"] = ANGLE_KIND[c.name]
+        fields.append(pa.field(c.name, _ARROW_TYPES[c.dtype], nullable=c.dtype != "int64", metadata=meta))
+    return pa.schema(fields, metadata={METADATA_KEY: json.dumps(metadata, sort_keys=True).encode()})
+
+
+def _coerce(df: pd.DataFrame, columns: tuple[Column, ...]) -> pd.DataFrame:
+    """Give ``df`` exactly the documented columns, in order, with the documented dtypes.
+
+    Both readers (Parquet and CSV) and the writer go through here, so the two formats load to equal
+    frames by construction of the dtypes; the values must still agree, which the tests check.
+    """
+    out = {}
+    for c in columns:
+        s = df[c.name] if c.name in df else pd.Series([], dtype="object")
+        if c.dtype == "category":
+            s = pd.Categorical(s.astype("string").fillna(""), categories=STATUS_CATEGORIES)
+        elif c.dtype == "string":
+            # text is never missing: an empty cell means the empty string, not NA
+            s = s.astype("string").fillna("")
+        else:
+            s = s.astype(c.dtype)
+        out[c.name] = s
+    res = pd.DataFrame(out)
+    return res.reset_index(drop=True)
+
+
+# --------------------------------------------------------------------------------------------------
+# rows from engagement maps
+
+
+def _nan_if_none(v: float | None) -> float:
+    return math.nan if v is None else float(v)
+
+
+def cl_row(em: EngagementMap, length_mm: float | None = None) -> dict[str, Any]:
+    """The ``cl`` table row of one engagement map.
+
+    ``length_mm`` is the path length of the move (mm); the engagement map only knows the end points,
+    so without it the chord length is used, which underestimates arcs (and so overestimates MRR).
+    """
+    if length_mm is None:
+        length_mm = math.dist(em.start, em.position)
+    entries = [iv.entry for s in em.slices for iv in s.intervals]
+    exits = [iv.exit for s in em.slices for iv in s.intervals]
+    feed = _nan_if_none(em.feed)
+    removed = float(em.removed_volume)
+    # MRR needs a feed move of positive length with a trusted volume: rapids are not cuts (their
+    # volume is an accident that is warned about) and a failed CL's volume is not known.
+    mrr = math.nan
+    if em.status not in (CLStatus.RAPID, CLStatus.FAILED) and feed > 0 and length_mm > 0:
+        mrr = removed * feed / length_mm
+    return {
+        "cl": int(em.cl_index),
+        "operation": em.operation,
+        "file": str(em.source.file),
+        "line": int(em.source.line),
+        "tool": em.tool,
+        "spindle": em.spindle.value,
+        "x": float(em.position[0]), "y": float(em.position[1]), "z": float(em.position[2]),
+        "x0": float(em.start[0]), "y0": float(em.start[1]), "z0": float(em.start[2]),
+        "feed_angle_machine_deg": float(em.feed_angle),
+        "feed_mm_min": feed,
+        "length_mm": float(length_mm),
+        "status": em.status.value,
+        "reason": em.reason,
+        "warnings": " | ".join(em.warnings),
+        "ap_mm": float(em.ap),
+        "ae_mm": float(em.ae),
+        "entry_min_deg": min(entries, default=math.nan),
+        "entry_max_deg": max(entries, default=math.nan),
+        "exit_min_deg": min(exits, default=math.nan),
+        "exit_max_deg": max(exits, default=math.nan),
+        "contact_area_mm2": float(em.contact_area),
+        "shank_contact_area_mm2": float(em.shank_contact_area),
+        "removed_volume_mm3": removed,
+        "mrr_mm3_min": mrr,
+        "sweep_method": em.sweep_method,
+        "time_ms": float(sum(t for _, t in em.timings_ms)),
+    }
+
+
+def slice_rows(em: EngagementMap) -> list[dict[str, Any]]:
+    """The ``slices`` table rows of one engagement map: one per engaged arc."""
+    rows = []
+    for s in em.slices:
+        for k, (iv, (m0, m1)) in enumerate(zip(s.intervals, em.machine_intervals(s))):
+            rows.append({
+                "cl": int(em.cl_index), "z_tool_mm": float(s.z), "z_machine_mm": float(s.z_machine),
+                "radius_mm": float(s.radius), "interval": k, "entry_deg": float(iv.entry),
+                "exit_deg": float(iv.exit), "entry_machine_deg": float(m0), "exit_machine_deg": float(m1),
+            })
+    return rows
+
+
+_SUMMARY_INPUTS = ("operation", "status", "time_ms", "removed_volume_mm3", "ae_mm", "ap_mm")
+
+
+def summarize(cl: pd.DataFrame, expected_cls: Mapping[str, int] | None = None) -> pd.DataFrame:
+    """Per-operation summary of a ``cl`` table (see the module docstring for the columns).
+
+    ``expected_cls`` maps operation -> number of CLs in the program; operations listed there but not
+    (yet) processed get a row of zeros, which is how an interrupted run shows what is missing.
+    Only the columns ``operation, status, time_ms, removed_volume_mm3, ae_mm, ap_mm`` are used.
+    """
+    expected = dict(expected_cls or {})
+    ops = list(dict.fromkeys(list(cl["operation"]) if len(cl) else []))
+    ops += [op for op in expected if op not in ops]
+    rows = []
+    for op in ops:
+        g = cl[cl["operation"] == op] if len(cl) else cl
+        status = g["status"].astype("string") if len(g) else pd.Series([], dtype="string")
+        counts = {s: int((status == s).sum()) for s in STATUS_CATEGORIES}
+        rows.append({
+            "operation": op,
+            "cls": int(expected.get(op, len(g))),
+            "processed": int(len(g)),
+            **counts,
+            "time_s": float(g["time_ms"].sum() / 1000.0) if len(g) else 0.0,
+            "volume_removed_mm3": float(g["removed_volume_mm3"].sum()) if len(g) else 0.0,
+            "max_ae_mm": float(g["ae_mm"].max()) if len(g) else 0.0,
+            "max_ap_mm": float(g["ap_mm"].max()) if len(g) else 0.0,
+        })
+    return _coerce(pd.DataFrame(rows, columns=[c.name for c in SUMMARY_COLUMNS]), SUMMARY_COLUMNS)
+
+
+# --------------------------------------------------------------------------------------------------
+# atomic file writes
+
+
+def _atomic_write(path: Path, write: Any) -> None:
+    """Call ``write(fileobj)`` on a temporary file next to ``path``, fsync it and move it into place.
+
+    ``os.replace`` is atomic on POSIX and Windows when both names are on one file system, which the
+    same directory guarantees; the fsync makes sure the new name never points at unwritten data after
+    a power loss.
+    """
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def _csv_bytes(df: pd.DataFrame, header: bool) -> bytes:
+    # pandas writes floats with the shortest repr that round-trips; NaN becomes an empty cell
+    return df.to_csv(index=False, header=header, na_rep="", lineterminator="\n").encode("utf-8")
+
+
+# --------------------------------------------------------------------------------------------------
+# the writer
+
+
+class ResultWriter:
+    """Writes a results directory incrementally as CLs arrive.
+
+    Use it as a context manager; leaving the block, normally or by an exception (including
+    ``KeyboardInterrupt``), flushes every CL added so far::
+
+        with ResultWriter(out_dir, job_hash=h, expected_cls={"rough": 1200}) as w:
+            for em, move in results:
+                w.add(em, length_mm=move.length)
+
+    CLs are kept in memory and written every ``batch_size`` CLs; if the process dies without leaving
+    the block (SIGKILL, power loss) the files hold every CL of the last completed flush and are never
+    corrupt. Each flush rewrites the Parquet files whole (Parquet cannot be appended to) and appends to
+    copies of the CSV files, so its cost grows with the job; ``max_io_fraction`` postpones a due flush
+    until the time since the last one is at least ``last flush duration / max_io_fraction``, which
+    keeps writing below that fraction of the run time on huge jobs. ``None`` flushes on every batch.
+    A flush that fails (disk full, ...) raises and keeps its CLs pending; the next flush retries them
+    without writing any row twice.
+
+    ``tools`` optionally maps tool labels to JSON-serialisable descriptions for the metadata; labels
+    seen in the engagement maps are added with an empty description.
+    """
+
+    def __init__(
+        self,
+        directory: str | os.PathLike[str],
+        *,
+        job_hash: str = "",
+        tools: Mapping[str, Any] | None = None,
+        expected_cls: Mapping[str, int] | None = None,
+        batch_size: int = 64,
+        max_io_fraction: float | None = 0.1,
+    ) -> None:
+        if batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+        if max_io_fraction is not None and not (0 < max_io_fraction <= 1):
+            raise ValueError(f"max_io_fraction must be in (0, 1], got {max_io_fraction}")
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self.job_hash = job_hash
+        self.tools: dict[str, Any] = dict(tools or {})
+        self.expected_cls = dict(expected_cls or {})
+        self.batch_size = batch_size
+        self.max_io_fraction = max_io_fraction
+        self._pending_cl: list[dict[str, Any]] = []
+        self._pending_slices: list[dict[str, Any]] = []
+        self._cl_tables: list[pa.Table] = []
+        self._slice_tables: list[pa.Table] = []
+        self._written = 0
+        self._last_flush_end = 0.0
+        self._last_flush_duration = 0.0
+        self._closed = False
+        self._csv_sizes: dict[str, int] = {}  # bytes of each CSV as of the last complete flush
+        # Replace whatever an earlier run left with empty tables at once, so the directory never
+        # mixes this job's CLs with another's and is loadable before the first flush.
+        self._write_files(new_cl=[], new_slices=[], fresh=True)
+
+    # context manager: always flush on the way out, also on errors and Ctrl-C
+    def __enter__(self) -> ResultWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def written(self) -> int:
+        """Number of CLs on disk."""
+        return self._written
+
+    @property
+    def pending(self) -> int:
+        """Number of CLs added but not yet on disk."""
+        return len(self._pending_cl)
+
+    def add(self, em: EngagementMap, *, length_mm: float | None = None) -> None:
+        """Add one CL; ``length_mm`` is its path length (mm, see :func:`cl_row`)."""
+        if self._closed:
+            raise ValueError("ResultWriter is closed")
+        self.tools.setdefault(em.tool, {})
+        self._pending_cl.append(cl_row(em, length_mm))
+        self._pending_slices.extend(slice_rows(em))
+        if len(self._pending_cl) >= self.batch_size and self._flush_allowed():
+            self.flush()
+
+    def _flush_allowed(self) -> bool:
+        if self.max_io_fraction is None or self._written == 0:
+            return True
+        waited = time.monotonic() - self._last_flush_end
+        return waited * self.max_io_fraction >= self._last_flush_duration
+
+    def flush(self) -> None:
+        """Write every pending CL now."""
+        if not self._pending_cl:
+            return
+        t0 = time.monotonic()
+        self._write_files(self._pending_cl, self._pending_slices)
+        self._written += len(self._pending_cl)
+        self._pending_cl, self._pending_slices = [], []
+        self._last_flush_end = time.monotonic()
+        self._last_flush_duration = self._last_flush_end - t0
+
+    def close(self) -> None:
+        """Flush and stop accepting CLs (idempotent)."""
+        if not self._closed:
+            try:
+                self.flush()
+            finally:
+                self._closed = True
+
+    # ------------------------------------------------------------------
+
+    def metadata(self) -> dict[str, Any]:
+        """The job metadata stored with the tables (JSON-serialisable)."""
+        return {
+            "format": FORMAT_NAME,
+            "format_version": FORMAT_VERSION,
+            "fusioncut_version": __version__,
+            "job_hash": self.job_hash,
+            "angle_convention": ANGLE_CONVENTION,
+            "angle_columns": ANGLE_KIND,
+            "tools": self.tools,
+            "units": {t: {c.name: c.unit for c in cols} for t, cols in TABLES.items()},
+            "dtypes": {t: {c.name: c.dtype for c in cols} for t, cols in TABLES.items()},
+        }
+
+    def _write_files(self, new_cl: list[dict[str, Any]], new_slices: list[dict[str, Any]],
+                     fresh: bool = False) -> None:
+        meta = self.metadata()
+        cl_new = _coerce(pd.DataFrame(new_cl, columns=[c.name for c in CL_COLUMNS]), CL_COLUMNS)
+        sl_new = _coerce(pd.DataFrame(new_slices, columns=[c.name for c in SLICE_COLUMNS]), SLICE_COLUMNS)
+        cl_schema = _arrow_schema(CL_COLUMNS, meta)
+        sl_schema = _arrow_schema(SLICE_COLUMNS, meta)
+        # The in-memory Arrow tables are only extended once the files are safely replaced, so a flush
+        # that fails half-way can simply be retried with the same pending rows.
+        cl_tables = self._cl_tables + [_to_arrow(cl_new, cl_schema)]
+        sl_tables = self._slice_tables + [_to_arrow(sl_new, sl_schema)]
+        cl_all = pa.concat_tables([t.replace_schema_metadata(cl_schema.metadata) for t in cl_tables])
+        sl_all = pa.concat_tables([t.replace_schema_metadata(sl_schema.metadata) for t in sl_tables])
+
+        d = self.directory
+        sizes: dict[str, int] = {}
+        # slices first: the cl files are the commit point, every CL they list has its slices on disk
+        sizes["slices.csv"] = self._write_csv(d / "slices.csv", sl_new, fresh)
+        _atomic_write(d / "slices.parquet", lambda f: pq.write_table(sl_all, f))
+        sizes["cl.csv"] = self._write_csv(d / "cl.csv", cl_new, fresh)
+        _atomic_write(d / "cl.parquet", lambda f: pq.write_table(cl_all, f))
+        # only the columns the summary needs: converting the whole table each flush would dominate
+        summary = summarize(cl_all.select(list(_SUMMARY_INPUTS)).to_pandas(), self.expected_cls)
+        _atomic_write(d / "summary.csv", lambda f: f.write(_csv_bytes(summary, header=True)))
+        _atomic_write(d / "metadata.json",
+                      lambda f: f.write(json.dumps(meta, indent=2, sort_keys=True).encode("utf-8")))
+        # the flush is complete: only now does it become the base of the next one
+        self._cl_tables, self._slice_tables = [pa.concat_tables(cl_tables)], [pa.concat_tables(sl_tables)]
+        self._csv_sizes = sizes
+
+    def _write_csv(self, path: Path, new_rows: pd.DataFrame, fresh: bool) -> int:
+        """Replace ``path`` by its committed part plus ``new_rows``; returns the new size in bytes."""
+        committed = 0 if fresh else self._csv_sizes.get(path.name, 0)
+
+        def write(f: Any) -> None:
+            if committed == 0:
+                f.write(_csv_bytes(new_rows, header=True))
+                return
+            # Copy only the bytes of the last complete flush: a flush that died after replacing this
+            # file but before the CL files may have left rows here that are still pending and are
+            # about to be written again.
+            with open(path, "rb") as old:
+                left = committed
+                while left:
+                    chunk = old.read(min(left, 1 << 20))
+                    if not chunk:
+                        raise OSError(f"{path}: shorter than the {committed} bytes written before")
+                    f.write(chunk)
+                    left -= len(chunk)
+            f.write(_csv_bytes(new_rows, header=False))
+
+        _atomic_write(path, write)
+        return path.stat().st_size
+
+
+def _to_arrow(df: pd.DataFrame, schema: pa.Schema) -> pa.Table:
+    plain = {}
+    for name in schema.names:
+        s = df[name]
+        if isinstance(s.dtype, pd.CategoricalDtype) or isinstance(s.dtype, pd.StringDtype):
+            plain[name] = pa.array(s.astype(object).tolist(), type=pa.string())
+        else:
+            plain[name] = pa.array(s.to_numpy(), type=schema.field(name).type)
+    return pa.table(plain, schema=schema)
+
+
+def _from_arrow(table: pa.Table, columns: tuple[Column, ...]) -> pd.DataFrame:
+    return _coerce(table.to_pandas(), columns)
+
+
+# --------------------------------------------------------------------------------------------------
+# reading
+
+
+@dataclass
+class Results:
+    """A loaded results directory: DataFrames with the documented columns and dtypes.
+
+    ``cl`` (one row per CL), ``slices`` (one row per engaged arc), ``summary`` (one row per
+    operation) and ``metadata`` (units, angle convention, tools, version, job hash). ``source`` says
+    which format was read: ``"parquet"`` or ``"csv"``.
+    """
+
+    cl: pd.DataFrame
+    slices: pd.DataFrame
+    summary: pd.DataFrame
+    metadata: dict[str, Any] = field(default_factory=dict)
+    source: str = "parquet"
+
+    def row(self, cl: int) -> pd.Series:
+        """The ``cl`` row of CL ``cl``; raises :class:`InputError` when it is not in the results."""
+        hit = self.cl[self.cl["cl"] == cl]
+        if hit.empty:
+            lo, hi = (int(self.cl["cl"].min()), int(self.cl["cl"].max())) if len(self.cl) else (0, -1)
+            rng = f"CLs {lo}..{hi}" if hi >= lo else "no CLs"
+            raise InputError(f"CL {cl} is not in the results ({rng})")
+        return hit.iloc[-1]  # a CL written twice (a re-run of one CL): the later result wins
+
+    def slices_of(self, cl: int) -> pd.DataFrame:
+        """Slice rows of CL ``cl``, sorted by height and arc index."""
+        return self.slices[self.slices["cl"] == cl].sort_values(["z_tool_mm", "interval"])
+
+
+def _read_csv(path: Path, columns: tuple[Column, ...]) -> pd.DataFrame:
+    dtypes = {c.name: ("string" if c.dtype in ("string", "category") else c.dtype) for c in columns}
+    floats = [c.name for c in columns if c.dtype == "float64"]
+    kw: dict[str, Any] = {}
+    if int(pd.__version__.split(".")[0]) < 3:  # pandas 3 parses floats exactly by default
+        kw["float_precision"] = "round_trip"
+    # only an empty float cell is NaN; text like "NA" or "" stays text
+    df = pd.read_csv(path, dtype=dtypes, keep_default_na=False, na_values={c: [""] for c in floats},
+                     encoding="utf-8", **kw)
+    missing = [c.name for c in columns if c.name not in df]
+    if missing:
+        raise InputError(f"missing columns {', '.join(missing)}", path)
+    return _coerce(df, columns)
+
+
+def _read_table(directory: Path, name: str, columns: tuple[Column, ...]) -> tuple[pd.DataFrame, dict, str]:
+    pq_path, csv_path = directory / f"{name}.parquet", directory / f"{name}.csv"
+    if pq_path.exists():
+        table = pq.read_table(pq_path)
+        raw = (table.schema.metadata or {}).get(METADATA_KEY)
+        missing = [c.name for c in columns if c.name not in table.column_names]
+        if missing:
+            raise InputError(f"missing columns {', '.join(missing)}", pq_path)
+        return _from_arrow(table, columns), (json.loads(raw) if raw else {}), "parquet"
+    if csv_path.exists():
+        return _read_csv(csv_path, columns), {}, "csv"
+    raise InputError(f"no {name}.parquet or {name}.csv: not a FusionCut results directory", directory)
+
+
+def load_results(path: str | os.PathLike[str], *, prefer: str = "parquet") -> Results:
+    """Load a results directory written by :class:`ResultWriter`.
+
+    Reads ``cl.parquet`` and ``slices.parquet`` when present, else the CSV files (``prefer="csv"``
+    forces CSV). Columns and dtypes are those documented in this module; ``status`` is a categorical
+    with the categories engaged, air, rapid, failed; text columns are pandas ``string`` without NA.
+    """
+    directory = Path(path)
+    if not directory.is_dir():
+        raise InputError("results directory not found", directory)
+    if prefer not in ("parquet", "csv"):
+        raise ValueError(f"prefer must be 'parquet' or 'csv', got {prefer!r}")
+    if prefer == "csv":
+        cl, meta, source = _read_csv_or_fail(directory, "cl", CL_COLUMNS), {}, "csv"
+        slices = _read_csv_or_fail(directory, "slices", SLICE_COLUMNS)
+    else:
+        cl, meta, source = _read_table(directory, "cl", CL_COLUMNS)
+        slices, _, _ = _read_table(directory, "slices", SLICE_COLUMNS)
+    if not meta and (directory / "metadata.json").exists():
+        meta = json.loads((directory / "metadata.json").read_text(encoding="utf-8"))
+    # A reader racing a flush (or a run killed during one) can see slices of CLs whose cl rows are
+    # not written yet: the cl table is the commit point, so drop them for a consistent snapshot.
+    slices = slices[slices["cl"].isin(cl["cl"])].reset_index(drop=True)
+    summary_path = directory / "summary.csv"
+    summary = _read_csv(summary_path, SUMMARY_COLUMNS) if summary_path.exists() else summarize(cl)
+    return Results(cl=cl, slices=slices, summary=summary, metadata=meta, source=source)
+
+
+def _read_csv_or_fail(directory: Path, name: str, columns: tuple[Column, ...]) -> pd.DataFrame:
+    path = directory / f"{name}.csv"
+    if not path.exists():
+        raise InputError(f"no {name}.csv", directory)
+    return _read_csv(path, columns)
+
+
+__all__ = [
+    "ANGLE_CONVENTION", "CL_COLUMNS", "SLICE_COLUMNS", "SUMMARY_COLUMNS", "Column", "ResultWriter", "Results",
+    "cl_row", "load_results", "slice_rows", "summarize",
+]
