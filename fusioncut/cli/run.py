@@ -71,13 +71,17 @@ def register(app: typer.Typer) -> None:
     @friendly_errors
     def demo(out: Path = typer.Option(Path("fusioncut-out/demo"), help="results folder"),
              slice_height: float = typer.Option(1.0, help="axial slice spacing, mm"),
+             sweep: str = typer.Option("exact", help="exact, or sampled (tool copies, the published method)"),
              log_level: str = typer.Option("info", help="log file level")) -> None:
         """Mill the built-in demo block (face, slot, trochoidal, contour, ball finish) and summarise."""
         from fusioncut.demo import demo_stock, demo_toolpath
         from fusioncut.runner import run_toolpath
 
         _setup_logging(out, log_level)
-        opts = EngineOptions(slice_height=slice_height, max_segment_length=2.0, failure_dir=out / "failures")
+        if sweep not in ("exact", "sampled"):
+            raise typer.BadParameter("--sweep is exact or sampled")
+        opts = EngineOptions(slice_height=slice_height, max_segment_length=2.0, sweep=sweep,  # type: ignore[arg-type]
+                             failure_dir=out / "failures")
         result = _run_with_progress(lambda cb: run_toolpath(demo_toolpath(), demo_stock(), out, opts, on_cl=cb))
         _print_summary(result)
 
