@@ -110,17 +110,18 @@ def test_tool_meeting_two_separate_regions_gives_two_intervals():
     _, maps = run(moves, {1: big, 2: small}, stock)
     mid, corner = maps[-2], maps[-1]
     a = math.degrees(math.acos(2 / 5))
-    for s in mid.engaged_slices:
-        got = [(iv.entry, iv.exit) for iv in s.intervals]
-        assert len(got) == 2
-        for g, e in zip(got, [(0.0, a), (180 - a, 180.0)]):
-            assert g == pytest.approx(e, abs=MID_PASS_TOL)
+    assert_intervals(mid, [(0.0, a), (180 - a, 180.0)], MID_PASS_TOL)
     b = math.degrees(math.asin(37 / 40))
-    for s in corner.engaged_slices:
+    assert_intervals(corner, [(0.0, b), (180 - b, 180.0)], CORNER_TOL)
+
+
+def assert_intervals(cl_map, expected, tol):
+    assert cl_map.engaged_slices
+    for s in cl_map.engaged_slices:
         got = [(iv.entry, iv.exit) for iv in s.intervals]
-        assert len(got) == 2
-        for g, e in zip(got, [(0.0, b), (180 - b, 180.0)]):
-            assert g == pytest.approx(e, abs=CORNER_TOL)
+        assert len(got) == len(expected)
+        for g, e in zip(got, expected):
+            assert g == pytest.approx(e, abs=tol)
 
 
 def test_volume_is_conserved_over_a_mixed_program():
