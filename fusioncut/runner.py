@@ -113,8 +113,10 @@ def read_toolpath(path: Path, tools: dict[int, MillingTool], strict: bool) -> To
         from fusioncut.io.fusion_json import read_fusion_json
 
         return read_fusion_json(path)
-    from fusioncut.io.gcode import read_gcode
-
+    try:
+        from fusioncut.io.gcode import read_gcode
+    except ImportError:  # the interpreter is issue 3's work in progress
+        raise InputError("reading G-code is not available in this version yet", path) from None
     return read_gcode(path, tools=tools or None, strict=strict)
 
 
