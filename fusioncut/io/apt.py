@@ -32,7 +32,8 @@ that would move the tool in ways we do not evaluate are refused, see below):
 * ``CUTTER/d[, r[, e, f, alpha[, beta, h]]]`` and NX ``TLDATA/MILL, d, r, l, beta, alpha[, e, f
   [, r2, e2, f2]]`` - see :func:`cutter_from_parameters` for how the parameters become a tool.
 * ``LOADTL/n, ...``, NX ``LOAD/TOOL, n[, ADJUST, m]`` and ``SELECT/TOOL, n`` - tool numbers.
-* ``SPINDL/rpm[, RPM][, CLW|CCLW]``, ``SPINDL/RPM, rpm, CLW``, ``SPINDL/ON|OFF|CLW|CCLW``.
+* ``SPINDL/rpm[, RPM][, CLW|CCLW]``, ``SPINDL/RPM, rpm, CLW``, ``SPINDL/ON|OFF|CLW|CCLW``. ``OFF`` keeps
+  the last speed: Autodesk's APT post writes ``SPINDL/OFF`` for *start spindle* (and ``ON`` for stop).
 * ``CYCLE/type, depth, [INCR, i,] MMPM|IPM, f, clearance[, RAPTO, r][, DWELL, q]`` ... ``CYCLE/OFF``
   as Fusion writes them: each ``GOTO`` inside the cycle is the hole *bottom*, ``clearance`` the
   absolute clearance height, ``RAPTO`` the distance from there down to the retract plane. Each hole is
@@ -401,6 +402,8 @@ _REFUSED = {
     "TRACUT": "a CL transformation", "REFSYS": "a CL transformation", "INDEX": "a CL transformation",
     "RETRCT": "a retract to an undefined clearance plane",
 }
+# motion statements that may not come between an arc statement and the GOTO of its end
+_BREAKS_ARC = {"RAPID", "GODLTA", "GOHOME", "FROM", "MOVARC", "CIRCLE", "CYCLE"}
 _FEED_UNITS = {"MMPM": (1.0, False), "IPM": (INCH, False), "MMPR": (1.0, True), "IPR": (INCH, True)}
 
 
@@ -477,6 +480,15 @@ class _AptReader:
             raise InputError(f"{rec.major}: expected a number for {what}, got {token.strip()!r}", self.where(rec))
         return finite(float(t.replace("D", "E").replace("d", "e")), what, self.where(rec))
 
+    def fields(self, rec: _Record) -> list[str]:
+        """The record's comma-separated fields; a trailing empty one is tolerated, inner ones are not."""
+        args = list(rec.args)
+        if args and args[-1] == "":
+            args.pop()
+        if "" in args:
+            raise InputError(f"{rec.major}: empty field in {rec.rest.strip()!r}", self.where(rec))
+        return args
+
     def nums(self, rec: _Record, tokens: tuple[str, ...] | list[str], what: str) -> list[float]:
         return [self.num(rec, t, what) for t in tokens]
 
@@ -506,7 +518,7 @@ class _AptReader:
                 break
             if rec.major in _REFUSED:
                 raise InputError(f"{rec.major} is {_REFUSED[rec.major]}; not supported in CL data", self.where(rec))
-            if self.s.arc is not None and rec.major in {"RAPID", "GODLTA", "GOHOME", "FROM", "MOVARC", "CIRCLE", "CYCLE"}:
+            if self.s.arc is not None and rec.major in _BREAKS_ARC:
                 raise InputError(f"arc at line {self.s.arc.rec.line} is not followed by the GOTO of its end point",
                                  self.where(rec))
             handler = handlers.get(rec.major)
@@ -569,7 +581,8 @@ class _AptReader:
             s.pos = end
             if not rapid:
                 self.warnings.append(
-                    f"{self.where(rec)}: the first motion is a feed move from an unknown position; it only sets the position"
+                    f"{self.where(rec)}: the first motion is a feed move from an unknown position; "
+                    "it only sets the position"
                 )
             return
         if end == s.pos:
@@ -586,11 +599,11 @@ class _AptReader:
 
     def point(self, rec: _Record, what: str = "GOTO") -> tuple[Point, tuple[float, float, float] | None]:
         """(x, y, z) in mm and the tool axis if given, from a GOTO-like record."""
-        args = [a for a in rec.args if a != ""]
+        args = self.fields(rec)
         if len(args) == 2:
             if self.s.pos is None:
                 raise InputError(f"{what}/x, y without a known z", self.where(rec))
-            x, y = (self.length(v) for v in self.nums(rec, args, "a coordinate"))
+            x, y = (finite(self.length(v), "coordinate", self.where(rec)) for v in self.nums(rec, args, "coordinate"))
             return (x, y, self.s.pos[2]), None
         if len(args) not in (3, 6):
             raise InputError(f"{what} needs x, y, z or x, y, z, i, j, k; got {len(args)} values", self.where(rec))
@@ -609,7 +622,7 @@ class _AptReader:
         s = self.s
         end, _ = self.point(rec)
         if s.arc is not None:
-            self.emit_arc(end, rec)
+            self.emit_arc(end)
             return
         if s.cycle is not None:
             self.emit_cycle_point(end, rec)
@@ -631,7 +644,7 @@ class _AptReader:
     def on_godlta(self, rec: _Record) -> None:
         if self.s.pos is None:
             raise InputError("GODLTA from an unknown position", self.where(rec))
-        args = [a for a in rec.args if a != ""]
+        args = self.fields(rec)
         if len(args) == 1:  # GODLTA/dz moves along the tool axis, which is +z here
             d = (0.0, 0.0, self.num(rec, args[0], "a distance"))
         elif len(args) == 3:
@@ -645,7 +658,7 @@ class _AptReader:
         self.emit_linear((end[0], end[1], end[2]), rec, rapid)
 
     def on_tlaxis(self, rec: _Record) -> None:
-        args = [a for a in rec.args if a != ""]
+        args = self.fields(rec)
         if len(args) < 3 or not all(self.is_number(a) for a in args[:3]):
             raise InputError("TLAXIS needs i, j, k", self.where(rec))
         v = self.nums(rec, args[:3], "an axis component")
@@ -654,7 +667,7 @@ class _AptReader:
 
     # -- arcs --------------------------------------------------------------------------------------
     def on_movarc(self, rec: _Record) -> None:
-        args = [a.upper() for a in rec.args if a != ""]
+        args = [a.upper() for a in self.fields(rec)]
         center = axis = None
         radius = sweep = None
         if args and not self.is_number(args[0]):  # keyword form
@@ -691,19 +704,21 @@ class _AptReader:
         self.start_arc(rec, center, axis, radius, sweep)
 
     def on_circle(self, rec: _Record) -> None:
-        args = [a for a in rec.args if a != ""]
+        args = self.fields(rec)
         if len(args) < 7:
             raise InputError(f"CIRCLE needs cx, cy, cz, i, j, k, r; got {len(args)} values", self.where(rec))
         v = self.nums(rec, args[:7], "an arc parameter")
         self.start_arc(rec, (v[0], v[1], v[2]), (v[3], v[4], v[5]), v[6], None)
 
-    def start_arc(self, rec, center, axis, radius, sweep) -> None:
+    def start_arc(self, rec: _Record, center: Point, axis: tuple[float, float, float], radius: float | None,
+                  sweep: float | None) -> None:
+        """Remember an arc statement (program units) until the GOTO of its end point."""
         if self.s.cycle is not None:
             raise InputError("arc inside a drilling cycle", self.where(rec))
         c = (self.length(center[0]), self.length(center[1]), self.length(center[2]))
         self.s.arc = _PendingArc(rec, c, axis, None if radius is None else self.length(radius), sweep)
 
-    def emit_arc(self, end: Point, goto: _Record) -> None:
+    def emit_arc(self, end: Point) -> None:
         s = self.s
         arc = s.arc
         assert arc is not None
@@ -727,7 +742,7 @@ class _AptReader:
 
     # -- cycles ------------------------------------------------------------------------------------
     def on_cycle(self, rec: _Record) -> None:
-        args = [a.upper() for a in rec.args if a != ""]
+        args = [a.upper() for a in self.fields(rec)]
         if not args:
             raise InputError("CYCLE needs a type", self.where(rec))
         kind = args[0]
@@ -742,7 +757,6 @@ class _AptReader:
             raise InputError("NX-style CYCLE (FEDTO/RTRCTO) not supported yet", self.where(rec))
         feed = clearance = None
         per_rev = False
-        unit = 1.0
         rapto = 0.0
         i = 0
         seen_depth = False
@@ -816,7 +830,7 @@ class _AptReader:
             self.s.pprints.clear()
 
     def on_cutter(self, rec: _Record) -> None:
-        args = [a for a in rec.args if a != ""]
+        args = self.fields(rec)
         if not args or not all(self.is_number(a) for a in args):
             raise InputError("CUTTER needs numeric parameters d[, r[, e, f, alpha[, beta, h]]]", self.where(rec))
         v = self.nums(rec, args, "a cutter parameter")
@@ -833,8 +847,8 @@ class _AptReader:
         else:
             h = ASSUMED_FLUTE_LENGTH_DIAMETERS * max(d, 2 * r)
             self.warnings.append(
-                f"{self.where(rec)}: CUTTER gives no flute length; assumed {ASSUMED_FLUTE_LENGTH_DIAMETERS:g} x diameter"
-                f" = {h:.4g} mm"
+                f"{self.where(rec)}: CUTTER gives no flute length; assumed "
+                f"{ASSUMED_FLUTE_LENGTH_DIAMETERS:g} x diameter = {h:.4g} mm"
             )
         if d <= _DIM_TOL and r <= _DIM_TOL and beta > 0:
             self.warnings.append(
@@ -850,10 +864,12 @@ class _AptReader:
         self.new_cutter(rec, tool)
 
     def on_tldata(self, rec: _Record) -> None:
-        args = [a for a in rec.args if a != ""]
+        args = self.fields(rec)
         kind = args[0].upper() if args else ""
         if kind != "MILL":
-            raise ToolDefinitionError(f"TLDATA/{kind or '?'} tools are not modelled (milling tools only)", self.where(rec))
+            raise ToolDefinitionError(
+                f"TLDATA/{kind or '?'} tools are not modelled (milling tools only)", self.where(rec)
+            )
         vals = args[1:]
         if len(vals) < 3 or not all(self.is_number(a) for a in vals):
             raise InputError("TLDATA/MILL needs d, r, l[, taper, tip angle[, ...]]", self.where(rec))
@@ -864,7 +880,9 @@ class _AptReader:
         e = self.length(v[5]) if len(v) > 6 else None
         f = self.length(v[6]) if len(v) > 6 else None
         if len(v) > 7 and v[7] > _DIM_TOL:
-            raise ToolDefinitionError("TLDATA/MILL with an upper radius (barrel/lollipop form) is not modelled", self.where(rec))
+            raise ToolDefinitionError(
+                "TLDATA/MILL with an upper radius (barrel/lollipop form) is not modelled", self.where(rec)
+            )
         if len(v) > 6 and abs(alpha) < 1e-9 and abs(beta) < 1e-9:
             e = f = None  # the named families need no corner centre
         # NX gives only the tool length: the whole of it is taken as fluted
@@ -877,14 +895,14 @@ class _AptReader:
         return int(v)
 
     def on_loadtl(self, rec: _Record) -> None:
-        args = [a for a in rec.args if a != ""]
+        args = self.fields(rec)
         if not args:
             raise InputError("LOADTL needs a tool number", self.where(rec))
         self.s.tool_number = self.tool_number_from(rec, args[0])
         self.take_operation_name()
 
     def on_load(self, rec: _Record) -> None:
-        args = [a for a in rec.args if a != ""]
+        args = self.fields(rec)
         if len(args) < 2 or args[0].upper() != "TOOL":
             self.warn_once(f"load:{rec.rest}", f"{self.where(rec)}: {rec.major}/{rec.rest.strip()} ignored")
             return
@@ -893,7 +911,7 @@ class _AptReader:
 
     def on_spindl(self, rec: _Record) -> None:
         s = self.s
-        words = [a.upper() for a in rec.args if a != ""]
+        words = [a.upper() for a in self.fields(rec)]
         if any(w in {"SFM", "SMM"} for w in words):
             self.warn_once("css", f"{self.where(rec)}: constant surface speed ignored; spindle speed unknown")
             return
@@ -903,9 +921,7 @@ class _AptReader:
                 s.spindle = SpindleDirection.CW
             elif w == "CCLW":
                 s.spindle = SpindleDirection.CCW
-            elif w == "OFF":
-                s.rpm = None
-            elif w in {"ON", "RPM", "RANGE", "LOW", "HIGH", "MEDIUM", "MAXRPM", "ORIENT", "LOCK"}:
+            elif w in {"ON", "OFF", "RPM", "RANGE", "LOW", "HIGH", "MEDIUM", "MAXRPM", "ORIENT", "LOCK"}:
                 pass
             elif self.is_number(w):
                 value = self.num(rec, w, "the spindle speed")
@@ -930,7 +946,7 @@ class _AptReader:
         self.s.pprints.clear()  # header comments are not operation names
 
     def on_fedrat(self, rec: _Record) -> None:
-        args = [a.upper() for a in rec.args if a != ""]
+        args = [a.upper() for a in self.fields(rec)]
         value = None
         unit, per_rev = self.s.scale, False
         for w in args:
@@ -952,7 +968,7 @@ class _AptReader:
         self.s.feed_per_rev = per_rev
 
     def on_tool_path(self, rec: _Record) -> None:
-        args = [a for a in rec.args]
+        args = list(rec.args)
         self.s.operation = args[0] if args else ""
         self.s.tool_name = ""
         if len(args) >= 3 and args[1].upper() == "TOOL":

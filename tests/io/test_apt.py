@@ -223,6 +223,19 @@ GOTO/5, 0, -2
     assert math.isclose(arc.length, math.hypot(4 * math.pi * 5, 2))
 
 
+def test_movarc_keyword_form(tmp_path):
+    text = """\
+UNITS/MM
+CUTTER/6
+FEDRAT/100
+GOTO/5, 0, 0
+MOVARC/ CENTER, 0, 0, 0, AXIS, 0, 0, -1, RADIUS, 5
+GOTO/0, -5, 0
+"""
+    arc = read_apt(write(tmp_path, text)).moves[-1]
+    assert arc.clockwise and math.isclose(arc.sweep, -math.pi / 2)
+
+
 def test_drilling_cycle_is_expanded(tmp_path):
     text = """\
 UNITS/MM
@@ -330,6 +343,8 @@ def test_solve_arc_rejects_off_circle_and_skew_axis():
         ("GOTO/1e999,0,0", "out of range", 3),
         ("FEDRAT/0\nGOTO/0,0,0", "feed must be > 0", 3),
         ("TLDATA/DRILL,MILL,10,0,80,118,35", "not modelled", 3),
+        ("GOTO/1,,2,3", "empty field", 3),
+        ("MOVARC/CENTER,0,0,0,AXIS,0,0\nGOTO/1,0,0", "AXIS needs 3 value", 3),
     ],
 )
 def test_malformed_records_name_file_and_line(tmp_path, body, message, line):
