@@ -31,12 +31,12 @@ from functools import lru_cache
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
 from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeWire
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakePrism, BRepPrimAPI_MakeRevol
-from OCP.gp import gp_Ax1, gp_Ax2, gp_Circ, gp_Dir, gp_Pnt, gp_Vec
+from OCP.gp import gp_Ax1, gp_Ax2, gp_Circ, gp_Dir, gp_Vec
 from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.engines.brep.occ import fuse_all, placement, planar_face, pnt, wire_from_points
-from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
-from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProfile
+from fusioncut.model.moves import ArcMove, ArcPlane, Move
+from fusioncut.model.tools import MillingTool, ProfileArc, ToolProfile
 
 Vec3 = tuple[float, float, float]
 _EPS = 1e-9
