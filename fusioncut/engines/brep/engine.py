@@ -12,8 +12,10 @@ on. Removed volume is checked against the IPW's volume change on every CL.
 """
 from __future__ import annotations
 
+import json
 import logging
 import math
+import os
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
@@ -26,7 +28,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, count_faces, faces, shape_list, unify, volume, write_brep,
+    bounding_box, boxes_overlap, count_faces, faces, read_brep, shape_list, unify, volume, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import swept_volume
@@ -70,21 +72,59 @@ class BRepEngine:
         self.start(stock)
         yield from self.process(toolpath, default_tool)
 
-    def process(self, toolpath: Toolpath, default_tool: MillingTool | None = None, first_index: int = 0) -> Iterator[EngagementMap]:
-        """Run the CL segments of ``toolpath`` on the current IPW."""
+    def process(self, toolpath: Toolpath, default_tool: MillingTool | None = None,
+                start_at: int = 0) -> Iterator[EngagementMap]:
+        """Run the CL segments of ``toolpath`` on the current IPW, from CL index ``start_at`` on.
+
+        The CLs before ``start_at`` are taken as done (a resumed run whose IPW comes from
+        :meth:`load_checkpoint`); they only carry the feed direction forward.
+        """
         opts = self.options
         feed_angle = 0.0
-        index = first_index
-        for move in cl_segments(toolpath.moves, opts.max_segment_length, opts.chord_tolerance):
+        for index, move in enumerate(cl_segments(toolpath.moves, opts.max_segment_length, opts.chord_tolerance)):
+            d = horizontal_direction(move)
+            if d is not None:
+                feed_angle = math.degrees(math.atan2(d[1], d[0])) % 360.0
+            if index < start_at:
+                continue
             tool = toolpath.tools.get(move.tool) if move.tool is not None else None
             tool = tool or default_tool
             if tool is None:
                 raise InputError(f"no tool definition for T{move.tool}", move.source)
-            d = horizontal_direction(move)
-            if d is not None:
-                feed_angle = math.degrees(math.atan2(d[1], d[0])) % 360.0
             yield self.step(index, move, tool, feed_angle)
-            index += 1
+
+    def save_checkpoint(self, folder: Path, next_cl: int) -> None:
+        """Write the engine state atomically into ``folder`` (IPW as .brep, counters as JSON).
+
+        ``next_cl`` is the index of the first CL not yet processed. The BRep text format keeps
+        doubles exactly, so a run resumed from here gives the same results as one never stopped.
+        """
+        folder.mkdir(parents=True, exist_ok=True)
+        name = f"ipw-{next_cl:07d}.brep"
+        write_brep(self.ipw, str(folder / (name + ".tmp")))
+        os.replace(folder / (name + ".tmp"), folder / name)
+        state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
+                 "removed_total": self.removed_total, "faces_at_merge": self._faces_at_merge}
+        (folder / "state.json.tmp").write_text(json.dumps(state))
+        os.replace(folder / "state.json.tmp", folder / "state.json")
+        for old in folder.glob("ipw-*.brep"):
+            if old.name != name:
+                old.unlink(missing_ok=True)
+
+    def load_checkpoint(self, folder: Path) -> int | None:
+        """Restore the state saved by :meth:`save_checkpoint`; the next CL index, or None if none."""
+        try:
+            state = json.loads((folder / "state.json").read_text())
+            ipw = read_brep(str(folder / state["ipw"]))
+        except (OSError, ValueError, KeyError):
+            return None
+        if ipw.IsNull():
+            return None
+        self.ipw = ipw
+        self.stock_volume = state["stock_volume"]
+        self.removed_total = state["removed_total"]
+        self._faces_at_merge = state["faces_at_merge"]
+        return int(state["next_cl"])
 
     def step(self, index: int, move: Move, tool: MillingTool, feed_angle: float) -> EngagementMap:
         """Process one CL segment; never raises for kernel trouble (the map says FAILED)."""
