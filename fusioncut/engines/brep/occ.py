@@ -163,3 +163,28 @@ __all__ = [
     "faces", "fuse_all", "placement", "planar_face", "pnt", "read_brep", "shape_list", "solids", "unify",
     "volume", "wire_from_points", "write_brep",
 ]
+
+
+def write_step(shape: TopoDS_Shape, path: str) -> None:
+    """Write ``shape`` as an AP214 STEP file in millimetres."""
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.Interface import Interface_Static
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
+
+    writer = STEPControl_Writer()
+    Interface_Static.SetCVal_s("write.step.unit", "MM")
+    writer.Transfer(shape, STEPControl_AsIs)
+    if writer.Write(path) != IFSelect_RetDone:
+        raise OSError(f"could not write STEP file {path}")
+
+
+def write_stl(shape: TopoDS_Shape, path: str, deflection: float = 0.01, angle: float = 0.2) -> None:
+    """Write ``shape`` as binary STL, meshed within ``deflection`` mm and ``angle`` rad."""
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.StlAPI import StlAPI_Writer
+
+    BRepMesh_IncrementalMesh(shape, deflection, False, angle, True)
+    writer = StlAPI_Writer()
+    writer.ASCIIMode = False
+    if not writer.Write(shape, path):
+        raise OSError(f"could not write STL file {path}")
