@@ -25,7 +25,7 @@ from OCP.TopAbs import TopAbs_EDGE
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Face
 
-from fusioncut.engines.brep.occ import area
+from fusioncut.engines.brep.occ import area, faces
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine
 
 TWO_PI = 2 * math.pi
@@ -206,8 +206,34 @@ def find_contact_faces(candidates, tool: MillingTool, tip: tuple[float, float, f
         zs = [surf.Value(0.5 * (umin + umax), v).Z() - tip[2] for v in (vmin, vmax)]
         if surf.GetType() in (GeomAbs_Sphere, GeomAbs_Torus):
             zs += [surf.Value(0.5 * (umin + umax), 0.5 * (vmin + vmax)).Z() - tip[2]]
-        zr = (max(min(zs), ts.z0), min(max(zs), ts.z1))
-        out.append(ContactFace(face, ts, area(face), zr))
+        lo, hi = min(zs), max(zs)
+        if ts.kind == "cylinder" and hi > ts.z1 + tol:
+            # one face of a cylindrical sweep runs over flute and shank: split its area by zone
+            out.extend(_split_by_zone(face, ts, tsurfs, tip, lo, hi, tol))
+            continue
+        out.append(ContactFace(face, ts, area(face), (max(lo, ts.z0), min(hi, ts.z1))))
+    return out
+
+
+def _split_by_zone(face, ts: ToolSurface, tsurfs: list[ToolSurface], tip, lo: float, hi: float,
+                   tol: float) -> list[ContactFace]:
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+    from OCP.gp import gp_Pnt
+
+    out = []
+    big = 1e3 * (1.0 + ts.radius)
+    for other in tsurfs:
+        if other.kind != "cylinder" or abs(other.radius - ts.radius) > tol:
+            continue
+        z0, z1 = max(lo, other.z0), min(hi, other.z1)
+        if z1 <= z0 + tol:
+            continue
+        slab = BRepPrimAPI_MakeBox(gp_Pnt(tip[0] - big, tip[1] - big, tip[2] + z0),
+                                   gp_Pnt(tip[0] + big, tip[1] + big, tip[2] + z1)).Shape()
+        pieces = faces(BRepAlgoAPI_Common(face, slab).Shape())
+        for piece in pieces:
+            out.append(ContactFace(piece, other, area(piece), (z0, z1)))
     return out
 
 

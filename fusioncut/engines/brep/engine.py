@@ -28,7 +28,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, count_faces, faces, read_brep, shape_list, unify, volume, write_brep,
+    bounding_box, boxes_overlap, count_faces, faces, read_binary_brep, shape_list, unify, volume, write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import swept_volume
@@ -100,14 +100,14 @@ class BRepEngine:
         doubles exactly, so a run resumed from here gives the same results as one never stopped.
         """
         folder.mkdir(parents=True, exist_ok=True)
-        name = f"ipw-{next_cl:07d}.brep"
-        write_brep(self.ipw, str(folder / (name + ".tmp")))
+        name = f"ipw-{next_cl:07d}.bbrep"
+        write_binary_brep(self.ipw, str(folder / (name + ".tmp")))
         os.replace(folder / (name + ".tmp"), folder / name)
         state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
                  "removed_total": self.removed_total, "faces_at_merge": self._faces_at_merge}
         (folder / "state.json.tmp").write_text(json.dumps(state))
         os.replace(folder / "state.json.tmp", folder / "state.json")
-        for old in folder.glob("ipw-*.brep"):
+        for old in folder.glob("ipw-*.bbrep"):
             if old.name != name:
                 old.unlink(missing_ok=True)
 
@@ -115,7 +115,7 @@ class BRepEngine:
         """Restore the state saved by :meth:`save_checkpoint`; the next CL index, or None if none."""
         try:
             state = json.loads((folder / "state.json").read_text())
-            ipw = read_brep(str(folder / state["ipw"]))
+            ipw = read_binary_brep(str(folder / state["ipw"]))
         except (OSError, ValueError, KeyError):
             return None
         if ipw.IsNull():

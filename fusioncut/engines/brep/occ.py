@@ -154,6 +154,21 @@ def read_brep(path: str) -> TopoDS_Shape:
     return shape
 
 
+def write_binary_brep(shape: TopoDS_Shape, path: str) -> None:
+    from OCP.BinTools import BinTools
+
+    if not BinTools.Write_s(shape, path):
+        raise OSError(f"could not write {path}")
+
+
+def read_binary_brep(path: str) -> TopoDS_Shape:
+    from OCP.BinTools import BinTools
+
+    shape = TopoDS_Shape()
+    BinTools.Read_s(shape, path)
+    return shape
+
+
 def deg(x: float) -> float:
     return math.degrees(x)
 

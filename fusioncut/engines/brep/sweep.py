@@ -12,6 +12,11 @@ radius along the path's projection. That gives exact constructions without sampl
 * **vertical plunge / retract**: one revolved profile (lower tool's rising part, the widest band
   stretched over the travel, upper tool's falling part). Exact for profiles whose radius rises then
   falls (all families here).
+* **cylindrical tools** (a flat end mill whose shank has the flute diameter — what adaptive
+  clearing uses): on horizontal lines and on XY arcs up to half a turn the sweep is a prism of the
+  planar region the disk covers (stadium, or annular sector with half-disk caps, or for a tight arc
+  the outer arc with the two end circles meeting behind the centre). One prism, no Boolean: measured
+  0.3–0.6 ms against 8–37 ms for the general constructions.
 * **ramp** (oblique line), convex tool B, direction d: B ∪ (B+d) ∪ prism(S, d) for any surface S ⊂ B
   whose projection along d covers B's. For a flat end mill S = axial rectangle + top + bottom disk;
   for a ball end mill S = cylinder's axial rectangle + top disk + the sphere's great disk ⊥ d
@@ -36,7 +41,7 @@ from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.engines.brep.occ import fuse_all, placement, planar_face, pnt, wire_from_points
 from fusioncut.model.moves import ArcMove, ArcPlane, Move
-from fusioncut.model.tools import MillingTool, ProfileArc, ToolProfile
+from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProfile
 
 Vec3 = tuple[float, float, float]
 _EPS = 1e-9
@@ -119,6 +124,62 @@ def _horizontal_line(tool: MillingTool, p0: Vec3, p1: Vec3) -> TopoDS_Shape:
     body = _prism(full_section(prof, p0, n), (L * d[0], L * d[1], 0.0))
     front = _revolve(half_section(prof, p1, (-n[0], -n[1], 0.0)), p1, math.pi)
     return fuse_all([back, body, front], glue=True)
+
+
+def cylinder_tool(tool: MillingTool) -> tuple[float, float] | None:
+    """(radius, height) when the whole profile is one cylinder with flat ends, else None."""
+    segs = tool.profile().segments
+    lateral = [s for s in segs if abs(s.end[1] - s.start[1]) > _EPS]
+    if not lateral or not all(isinstance(s, ProfileLine) for s in segs):
+        return None
+    r = lateral[0].start[0]
+    if any(abs(s.start[0] - r) > _EPS or abs(s.end[0] - r) > _EPS for s in lateral):
+        return None
+    return r, segs[-1].end[1] - segs[0].start[1]
+
+
+def _add(p: Vec3, v: Vec3, k: float = 1.0) -> Vec3:
+    return (p[0] + k * v[0], p[1] + k * v[1], p[2] + k * v[2])
+
+
+def _region_prism(pieces, height: float) -> TopoDS_Shape:
+    return _prism(planar_face(wire_from_points(pieces)), (0.0, 0.0, height))
+
+
+def _cylinder_line(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape:
+    d = _unit((p1[0] - p0[0], p1[1] - p0[1], 0.0))
+    n = (-d[1], d[0], 0.0)
+    a, b, c, e = _add(p0, n, r), _add(p1, n, r), _add(p1, n, -r), _add(p0, n, -r)
+    return _region_prism([("line", (a, b)), ("arc", (b, _add(p1, d, r), c)),
+                          ("line", (c, e)), ("arc", (e, _add(p0, d, -r), a))], h)
+
+
+def _cylinder_arc(r: float, h: float, move: ArcMove) -> TopoDS_Shape | None:
+    """Prism of the region a disk of radius ``r`` covers along an XY arc of at most half a turn."""
+    c, p0, p1 = move.center, move.start, move.end
+    theta = move.sweep
+    rho = math.hypot(p0[0] - c[0], p0[1] - c[1])
+    if abs(theta) > math.pi + 1e-12 or rho < 1e-6 or r < rho <= r + 1e-4:
+        return None  # caps would overlap, or a near-degenerate inner arc: use the general sweep
+    a0 = math.atan2(p0[1] - c[1], p0[0] - c[0])
+    u = lambda a: (math.cos(a), math.sin(a), 0.0)  # noqa: E731
+    u0, u1, um = u(a0), u(a0 + theta), u(a0 + 0.5 * theta)
+    s = 1.0 if theta > 0 else -1.0
+    t0, t1 = (-s * u0[1], s * u0[0], 0.0), (-s * u1[1], s * u1[0], 0.0)
+    o0, o1, om = _add(c, u0, rho + r), _add(c, u1, rho + r), _add(c, um, rho + r)
+    o0, o1, om = (o0[0], o0[1], p0[2]), (o1[0], o1[1], p0[2]), (om[0], om[1], p0[2])
+    if rho > r:
+        i0, i1, im = (_add(c, v, rho - r) for v in (u0, u1, um))
+        i0, i1, im = ((q[0], q[1], p0[2]) for q in (i0, i1, im))
+        pieces = [("arc", (o0, om, o1)), ("arc", (o1, _add(p1, t1, r), i1)),
+                  ("arc", (i1, im, i0)), ("arc", (i0, _add(p0, t0, -r), o0))]
+    else:
+        # the end circles meet behind the arc centre; every disk in between covers the rest
+        half = 0.5 * abs(theta)
+        k = math.sqrt(r * r - (rho * math.sin(half)) ** 2) - rho * math.cos(half)
+        q = (c[0] - k * um[0], c[1] - k * um[1], p0[2])
+        pieces = [("arc", (o0, om, o1)), ("arc", (o1, _add(p1, t1, r), q)), ("arc", (q, _add(p0, t0, -r), o0))]
+    return _region_prism(pieces, h)
 
 
 def _arc_xy(tool: MillingTool, move: ArcMove, seam: float) -> TopoDS_Shape:
@@ -221,17 +282,19 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
         return SweptVolume(sampled_sweep(tool, move, seam), "sampled")
     p0, p1 = move.start, move.end
     shape: TopoDS_Shape | None
+    cyl = cylinder_tool(tool)
     if isinstance(move, ArcMove):
         if move.plane != ArcPlane.XY or move.is_helix:
             raise ValueError("helices and ZX/YZ arcs must be split into chords first")
-        shape = _arc_xy(tool, move, seam)
+        shape = _cylinder_arc(*cyl, move) if cyl else None
+        shape = shape or _arc_xy(tool, move, seam)
     else:
         dz = p1[2] - p0[2]
         dh = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
         if dh < _EPS and abs(dz) < _EPS:
             return SweptVolume(placed_tool(tool, p1, seam), "exact")
         if abs(dz) < _EPS:
-            shape = _horizontal_line(tool, p0, p1)
+            shape = _cylinder_line(*cyl, p0, p1) if cyl else _horizontal_line(tool, p0, p1)
         elif dh < _EPS:
             shape = _plunge(tool, p0, p1, seam)
         else:

@@ -34,7 +34,7 @@ def test_resumed_run_equals_uninterrupted(tmp_path):
     rest = list(second.process(tp, start_at=3))
     assert _strip(done + rest) == _strip(whole)
     assert abs(second.removed_total - sum(m.removed_volume for m in whole)) < 1e-9
-    assert len(list(tmp_path.glob("ipw-*.brep"))) == 1
+    assert len(list(tmp_path.glob("ipw-*.bbrep"))) == 1
 
 
 def test_no_checkpoint_gives_none(tmp_path):

@@ -134,3 +134,14 @@ def test_volume_is_conserved_over_a_mixed_program():
     removed = sum(m.removed_volume for m in maps)
     assert all(m.status != CLStatus.FAILED for m in maps)
     assert stock.volume - eng.ipw_volume == pytest.approx(removed, rel=1e-6)
+
+
+def test_slot_deeper_than_the_flutes_splits_contact_into_flute_and_shank():
+    tool = FlatEndMill(10, 8)  # shank of the flute diameter: one cylinder from tip to top
+    stock = BoxStock((-60, -60, -20), (60, 60, 0))
+    _, maps = run([feed((-80, 0, -12.0), (0, 0, -12.0))], {1: tool}, stock, max_segment_length=20.0)
+    last = maps[-1]
+    assert last.contact_area == pytest.approx(math.pi * 5 * 8, rel=1e-6)
+    assert last.shank_contact_area == pytest.approx(math.pi * 5 * 4, rel=1e-6)
+    assert len(last.engaged_slices) == 8
+    assert any("shank" in w for w in last.warnings)
