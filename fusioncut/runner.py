@@ -1,30 +1,62 @@
 """Running a whole job: read inputs, run the engine CL by CL, write results as they come.
 
-Shared by the CLI (and later the service) so there is one implementation of a run. Ctrl-C stops
-cleanly: the results of every finished CL are flushed before the run returns.
+Shared by the CLI and the service so there is one implementation of a run:
+
+1. :func:`prepare_job` reads and checks *every* input (tool library, tools, toolpaths, stock) and
+   writes nothing, so bad input fails with an :class:`~fusioncut.errors.InputError` naming
+   ``file:line`` before the results folder is touched.
+2. :func:`run_toolpath` runs the CLs, writing rows as they come (:class:`ResultWriter`). Every
+   ``checkpoint_every`` CLs, when the run ends and when it is interrupted, the rows are flushed
+   and *then* the engine state is saved in ``<out>/checkpoint`` (a checkpoint never runs ahead of
+   the rows on disk).
+3. Calling :func:`run_job` again on the same folder resumes: if the checkpoint belongs to the same
+   job hash (and FusionCut version) the IPW is loaded, rows of CLs at or after the checkpoint are
+   dropped, and the run continues there, ending with the results an uninterrupted run gives. A
+   different job starts over and clears the folder's results.
+
+Ctrl-C stops cleanly after the CL in progress (a second Ctrl-C stops at once): rows are flushed,
+a checkpoint is written and the result says ``interrupted``. Per CL, the log records at DEBUG level
+the index, source ``file:line``, status, sweep method and timings (ms).
 """
 from __future__ import annotations
 
+import json
 import logging
+import os
+import signal
 import statistics
+import threading
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
+from fusioncut import __version__
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.segments import cl_segments
-from fusioncut.errors import InputError
-from fusioncut.io.job import Job, build_stock, job_hash
-from fusioncut.io.results import ResultWriter
-from fusioncut.model import CLStatus, EngagementMap, MillingTool, Stock, Toolpath
+from fusioncut.errors import FusionCutError, InputError, ToolDefinitionError
+from fusioncut.io.job import RUN_OPTIONS, Job, build_stock, job_hash, read_toolpath
+from fusioncut.io.results import ResultWriter, load_results
+from fusioncut.model import CLStatus, EngagementMap, MillingTool, Move, Stock, Toolpath
 
 log = logging.getLogger("fusioncut.run")
+
+CHECKPOINT_DIR = "checkpoint"
+RUN_STATE = "run.json"  # in the checkpoint folder: which job (hash, version) the engine state is of
+DEFAULT_CHECKPOINT_EVERY = 200
+
+__all__ = [
+    "OperationSummary", "PreparedJob", "RunPlan", "RunResult", "prepare_job", "read_toolpath", "run_job",
+    "run_toolpath",
+]
 
 
 @dataclass
 class OperationSummary:
+    """Per-operation counts and totals of a run (volumes mm³, depths mm, times ms)."""
+
     operation: str
     cls: int = 0
     engaged: int = 0
@@ -37,14 +69,23 @@ class OperationSummary:
     times_ms: list[float] = field(default_factory=list)
 
     def add(self, m: EngagementMap) -> None:
-        self.cls += 1
-        setattr(self, m.status.value, getattr(self, m.status.value) + 1)
-        self.removed += m.removed_volume
-        self.max_ae = max(self.max_ae, m.ae)
-        self.max_ap = max(self.max_ap, m.ap)
         total = dict(m.timings_ms).get("total")
-        if total is not None:
-            self.times_ms.append(total)
+        self._count(m.status.value, m.removed_volume, m.ae, m.ap, total)
+
+    def add_row(self, row: dict[str, Any]) -> None:
+        """Count a CL from its ``cl`` table row (the CLs a resumed run kept)."""
+        t = row["time_ms"]
+        self._count(str(row["status"]), row["removed_volume_mm3"], row["ae_mm"], row["ap_mm"],
+                    t if t > 0 else None)
+
+    def _count(self, status: str, removed: float, ae: float, ap: float, total_ms: float | None) -> None:
+        self.cls += 1
+        setattr(self, status, getattr(self, status) + 1)
+        self.removed += removed
+        self.max_ae = max(self.max_ae, ae)
+        self.max_ap = max(self.max_ap, ap)
+        if total_ms is not None:
+            self.times_ms.append(total_ms)
 
     @property
     def median_ms(self) -> float:
@@ -53,6 +94,10 @@ class OperationSummary:
 
 @dataclass
 class RunResult:
+    """Outcome of a run. Volumes in mm³, ``seconds`` the wall time of this call. ``resumed_from`` is
+    the first CL computed by this call (0 unless a checkpoint was resumed); ``exported`` lists the
+    IPW files written (``ipw.step``, ``ipw.stl``, snapshots)."""
+
     operations: dict[str, OperationSummary]
     stock_volume: float
     final_volume: float
@@ -60,6 +105,8 @@ class RunResult:
     seconds: float
     out_dir: Path
     interrupted: bool = False
+    resumed_from: int = 0
+    exported: list[Path] = field(default_factory=list)
 
     @property
     def conservation_error(self) -> float:
@@ -67,86 +114,361 @@ class RunResult:
         return abs(self.stock_volume - self.final_volume - self.removed_volume) / self.stock_volume
 
 
-def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: EngineOptions | None = None,
-                 default_tool: MillingTool | None = None, job_id: str = "",
-                 on_cl: Callable[[EngagementMap, int], None] | None = None) -> RunResult:
-    """Run every CL of ``toolpath`` on ``stock``, writing results into ``out_dir`` as they come.
+@dataclass(frozen=True)
+class RunPlan:
+    """What a run is about to do, given to ``on_start`` before the first CL: CLs per operation in
+    program order (``expected``), how many of them are already done (``done``, from a checkpoint),
+    the total CL count and the first CL index computed now."""
 
-    ``on_cl(map, total)`` is called after each CL (progress reporting).
+    expected: dict[str, int]
+    done: dict[str, int]
+    total: int
+    start_at: int = 0
+
+
+@dataclass(frozen=True)
+class PreparedJob:
+    """Everything a job needs, read and checked: the toolpath with exactly the tools it uses, the
+    stock, engine options, the tool for moves without a T word, the job hash and run options."""
+
+    toolpath: Toolpath
+    stock: Stock
+    options: EngineOptions
+    default_tool: MillingTool | None
+    job_id: str
+    checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY
+    snapshot_cls: tuple[int, ...] = ()
+
+
+# --------------------------------------------------------------------------------------------------
+# reading and checking the inputs
+
+
+def prepare_job(job: Job, base: Path) -> PreparedJob:
+    """Read and check every input of ``job`` (paths relative to ``base``); writes nothing.
+
+    Tools are resolved per T number: the job's ``tools`` first, then the tool library (through
+    :meth:`ToolLibrary.require`, so a tool the library could not model fails with its reason), then
+    the tools the toolpath file describes itself (Fusion tool comments, APT ``CUTTER``). Moves
+    without a T word use the only tool defined when there is exactly one. Anything unresolved is an
+    :class:`InputError` naming the ``file:line`` of the first move concerned.
     """
-    options = options or EngineOptions()
-    engine = BRepEngine(options)
-    segments = cl_segments(toolpath.moves, options.max_segment_length, options.chord_tolerance)
-    expected: dict[str, int] = {}
-    for s in segments:
-        expected[s.operation] = expected.get(s.operation, 0) + 1
-    ops: dict[str, OperationSummary] = {}
-    t0 = time.perf_counter()
-    interrupted = False
-    tools = {t.label: {"kind": t.kind, "diameter_mm": t.diameter, "flute_length_mm": t.flute_length}
-             for t in toolpath.tools.values()}
-    engine.start(stock)
-    with ResultWriter(out_dir, job_hash=job_id, tools=tools, expected_cls=expected) as writer:
-        try:
-            for m, seg in zip(engine.process(toolpath, default_tool), segments):
-                writer.add(m, length_mm=seg.length)
-                ops.setdefault(m.operation, OperationSummary(m.operation)).add(m)
-                if m.status == CLStatus.FAILED:
-                    log.error("CL %d (%s): %s", m.cl_index, m.source, m.reason)
-                if on_cl:
-                    on_cl(m, len(segments))
-        except KeyboardInterrupt:
-            interrupted = True
-            log.warning("interrupted: results of the finished CLs are kept in %s", out_dir)
-    return RunResult(ops, engine.stock_volume, engine.ipw_volume, engine.removed_total,
-                     time.perf_counter() - t0, out_dir, interrupted)
-
-
-def read_toolpath(path: Path, tools: dict[int, MillingTool], strict: bool) -> Toolpath:
-    """Dispatch on the file suffix: G-code, APT/CLSF, or Fusion 360 JSON."""
-    suffix = path.suffix.lower()
-    if suffix in (".apt", ".cls", ".clsf", ".aptsource"):
-        from fusioncut.io.apt import read_apt
-
-        return read_apt(path)
-    if suffix == ".json":
-        from fusioncut.io.fusion_json import read_fusion_json
-
-        return read_fusion_json(path)
-    try:
-        from fusioncut.io.gcode import read_gcode
-    except ImportError:  # the interpreter is issue 3's work in progress
-        raise InputError("reading G-code is not available in this version yet", path) from None
-    return read_gcode(path, tools=tools or None, strict=strict)
-
-
-def run_job(job: Job, base: Path, out_dir: Path,
-            on_cl: Callable[[EngagementMap, int], None] | None = None) -> RunResult:
-    tools: dict[int, MillingTool] = {}
+    library = None
     if job.tool_library:
         from fusioncut.io.tool_library import read_tool_library
 
-        tools.update(read_tool_library(base / job.tool_library))
-    tools.update({t.number: t.build() for t in job.tools})
-    moves, warnings = [], []
+        library = read_tool_library(base / job.tool_library)
+        for w in library.warnings:
+            log.warning("%s", w)
+        for number, err in sorted(library.refused.items()):
+            log.warning("tool library: T%d left out: %s", number, err)
+    job_tools: dict[int, MillingTool] = {}
+    for spec in job.tools:
+        if spec.number in job_tools:
+            raise InputError(f"tools: T{spec.number} is defined twice", base)
+        job_tools[spec.number] = spec.build()
+    given: dict[int, MillingTool] = {**(library or {}), **job_tools}
+
+    moves: list[Move] = []
+    warnings: list[str] = []
+    file_tools: dict[int, MillingTool] = {}
     for name in job.toolpaths:
-        tp = read_toolpath(base / name, tools, job.strict)
+        tp = read_toolpath(base / name, given, job.strict)
         for n, t in tp.tools.items():
-            tools.setdefault(n, t)
+            file_tools.setdefault(n, t)
         moves.extend(tp.moves)
         warnings.extend(tp.warnings)
     for w in warnings:
         log.warning("%s", w)
+    if not moves:
+        raise InputError("the toolpath has no moves", base / job.toolpaths[0])
+
+    tools, default_tool = _resolve_tools(moves, job_tools, library, file_tools)
     toolpath = Toolpath(tuple(moves), tools, tuple(warnings), source=",".join(job.toolpaths))
     stock = build_stock(job.stock, base)
     if stock is None:
         from fusioncut.io.stock import infer_stock
 
-        stock = infer_stock(toolpath, margin=job.stock.margin)
+        stock = infer_stock(toolpath, margin=job.stock.margin, top=job.stock.top)
         log.warning("stock inferred from the toolpath extents: %s .. %s", stock.minimum, stock.maximum)
-    missing = sorted({m.tool for m in moves if m.tool is not None and m.tool not in tools})
-    if missing:
-        raise InputError(f"no tool definition for {', '.join(f'T{n}' for n in missing)} "
-                         "(give them in the job's 'tools' or a 'tool_library')", base)
-    options = EngineOptions(**job.options.model_dump(), failure_dir=out_dir / "failures")
-    return run_toolpath(toolpath, stock, out_dir, options, job_id=job_hash(job, base), on_cl=on_cl)
+    engine_opts = job.options.model_dump(exclude=set(RUN_OPTIONS))
+    return PreparedJob(toolpath, stock, EngineOptions(**engine_opts), default_tool, job_hash(job, base),
+                       job.options.checkpoint_every, tuple(job.options.snapshot_cls))
+
+
+def _resolve_tools(moves: list[Move], job_tools: dict[int, MillingTool], library: Any,
+                   file_tools: dict[int, MillingTool]) -> tuple[dict[int, MillingTool], MillingTool | None]:
+    first_use: dict[int, Move] = {}
+    untooled: Move | None = None
+    for m in moves:
+        if m.tool is None:
+            untooled = untooled or m
+        elif m.tool not in first_use:
+            first_use[m.tool] = m
+    tools: dict[int, MillingTool] = {}
+    for n, m in first_use.items():
+        if n in job_tools:
+            tools[n] = job_tools[n]
+        elif library is not None and (n in library or n in library.refused):
+            try:
+                tools[n] = library.require(n)
+            except ToolDefinitionError as e:
+                raise ToolDefinitionError(f"the program uses T{n} here, but {e}", m.source) from None
+        elif n in file_tools:
+            tools[n] = file_tools[n]
+        else:
+            raise InputError(f"no tool definition for T{n} (give it in the job's 'tools' or a 'tool_library')",
+                             m.source)
+    default_tool = None
+    if untooled is not None:
+        defined = {**file_tools, **(library or {}), **job_tools}
+        if len(defined) != 1:
+            raise InputError(
+                f"this move has no tool: the program selects none (no T word) and {len(defined)} tools are "
+                "defined; select one in the program or define exactly one tool in the job", untooled.source)
+        default_tool = next(iter(defined.values()))
+        log.warning("%s: moves without a T word use the only tool defined, %s", untooled.source, default_tool.label)
+    return tools, default_tool
+
+
+# --------------------------------------------------------------------------------------------------
+# running
+
+
+def run_job(job: Job, base: Path, out_dir: Path, on_cl: Callable[[EngagementMap, int], None] | None = None,
+            resume: bool = True, *, export_ipw: bool = True,
+            on_start: Callable[[RunPlan], None] | None = None) -> RunResult:
+    """Run ``job`` (paths relative to ``base``) into ``out_dir``; see the module docstring.
+
+    ``resume``: continue from a checkpoint of the same job in ``out_dir`` (``False``: start over).
+    ``on_cl(map, total)`` is called after each CL, once its row and any due checkpoint are written;
+    ``on_start(plan)`` once before the first. ``export_ipw`` writes the final workpiece as
+    ``ipw.step`` and ``ipw.stl``. Input errors are raised before anything is written.
+
+    To stop a run from outside (a service cancelling a job), raise ``KeyboardInterrupt`` in
+    ``on_cl``: the run returns with ``interrupted=True`` and a checkpoint after that CL. Any other
+    exception from ``on_cl`` also leaves a checkpoint and is then raised.
+    """
+    p = prepare_job(job, base)
+    options = replace(p.options, failure_dir=Path(out_dir) / "failures")
+    return run_toolpath(p.toolpath, p.stock, out_dir, options, default_tool=p.default_tool, job_id=p.job_id,
+                        on_cl=on_cl, resume=resume, checkpoint_every=p.checkpoint_every,
+                        snapshot_cls=p.snapshot_cls, export_ipw=export_ipw, on_start=on_start)
+
+
+def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: EngineOptions | None = None,
+                 default_tool: MillingTool | None = None, job_id: str = "",
+                 on_cl: Callable[[EngagementMap, int], None] | None = None, *, resume: bool = False,
+                 checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY, snapshot_cls: Iterable[int] = (),
+                 export_ipw: bool = True, on_start: Callable[[RunPlan], None] | None = None) -> RunResult:
+    """Run every CL of ``toolpath`` on ``stock``, writing results into ``out_dir`` as they come.
+
+    ``on_cl(map, total)`` is called after each CL (progress reporting). ``resume`` continues from a
+    checkpoint in ``out_dir`` whose job hash is ``job_id``. ``checkpoint_every`` (CLs; 0: only at the
+    end and on interruption), ``snapshot_cls`` (CL indices after which the IPW is written as
+    ``ipw_cl<N>.step``) and ``export_ipw`` (``ipw.step`` and ``ipw.stl`` at the end).
+    """
+    t0 = time.perf_counter()
+    out_dir = Path(out_dir)
+    options = options or EngineOptions()
+    engine = BRepEngine(options)
+    segments = cl_segments(toolpath.moves, options.max_segment_length, options.chord_tolerance)
+    total = len(segments)
+    expected: dict[str, int] = {}
+    for s in segments:
+        expected[s.operation] = expected.get(s.operation, 0) + 1
+    ck_dir = out_dir / CHECKPOINT_DIR
+
+    start_at, kept_rows = (_resume_point(engine, out_dir, job_id, total) if resume else (0, []))
+    if start_at == 0:
+        engine.start(stock)  # reads and checks a stock solid: still before anything is written
+        _clear_previous_run(out_dir)
+        _write_run_state(ck_dir, job_id)
+    else:
+        log.warning("resuming from the checkpoint in %s at CL %d of %d", ck_dir, start_at, total)
+    ops: dict[str, OperationSummary] = {}
+    for row in kept_rows:
+        ops.setdefault(row["operation"], OperationSummary(row["operation"])).add_row(row)
+    if on_start:
+        done: dict[str, int] = {}
+        for s in segments[:start_at]:
+            done[s.operation] = done.get(s.operation, 0) + 1
+        on_start(RunPlan(dict(expected), done, total, start_at))
+
+    tools = {t.label: _tool_description(t) for t in toolpath.tools.values()}
+    if default_tool is not None:
+        tools.setdefault(default_tool.label, _tool_description(default_tool))
+    snapshots = set(snapshot_cls)
+    exported: list[Path] = []
+    interrupted = False
+    writer = ResultWriter(out_dir, job_hash=job_id, tools=tools, expected_cls=expected, keep_below=start_at)
+    # engine_state: index of the last CL the engine state includes; recorded: the last CL whose row
+    # the writer holds. A checkpoint is only consistent when they agree and no step is half done.
+    engine_state = recorded = start_at - 1
+    in_engine = False
+    checkpointed = start_at
+
+    def checkpoint() -> None:
+        nonlocal checkpointed
+        writer.flush()  # rows first: the checkpoint never runs ahead of the results on disk
+        engine.save_checkpoint(ck_dir, recorded + 1)
+        checkpointed = recorded + 1
+
+    with _CtrlC() as ctrl_c:  # also over the final checkpoint and export: Ctrl-C there only asks to stop
+        with writer:
+            try:
+                maps = engine.process(toolpath, default_tool, start_at=start_at)
+                while True:
+                    in_engine = True
+                    m = next(maps, None)
+                    in_engine = False
+                    if m is None:
+                        break
+                    engine_state = m.cl_index
+                    writer.add(m, length_mm=segments[m.cl_index].length)
+                    recorded = m.cl_index
+                    ops.setdefault(m.operation, OperationSummary(m.operation)).add(m)
+                    _log_cl(m)
+                    if m.cl_index in snapshots:
+                        exported += _export(engine, [out_dir / f"ipw_cl{m.cl_index:06d}.step"])
+                    if checkpoint_every and (m.cl_index + 1) % checkpoint_every == 0 and m.cl_index + 1 < total:
+                        checkpoint()
+                    if on_cl:
+                        on_cl(m, total)
+                    if ctrl_c.requested:
+                        raise KeyboardInterrupt
+            except BaseException as exc:
+                interrupted = isinstance(exc, KeyboardInterrupt)
+                if not in_engine and engine_state == recorded:
+                    try:
+                        checkpoint()
+                    except Exception:  # noqa: BLE001 - keep the original error; the rows are flushed on exit
+                        log.exception("could not write a checkpoint")
+                if not interrupted:
+                    raise
+                log.warning("interrupted after CL %d: results kept in %s; the checkpoint is at CL %d, run again "
+                            "to resume", recorded, out_dir, checkpointed)
+        if not interrupted:
+            engine.save_checkpoint(ck_dir, total)  # the writer is closed: every row is on disk
+            if export_ipw:
+                exported += _export(engine, [out_dir / "ipw.step", out_dir / "ipw.stl"])
+    return RunResult(ops, engine.stock_volume, engine.ipw_volume, engine.removed_total,
+                     time.perf_counter() - t0, out_dir, interrupted, start_at, exported)
+
+
+def _tool_description(t: MillingTool) -> dict[str, Any]:
+    return {"kind": t.kind, "diameter_mm": t.diameter, "flute_length_mm": t.flute_length}
+
+
+def _log_cl(m: EngagementMap) -> None:
+    """The per-CL trace line (DEBUG): index, source, status, sweep method, timings in ms."""
+    if m.status == CLStatus.FAILED:
+        log.error("CL %d (%s): %s", m.cl_index, m.source, m.reason)
+    if log.isEnabledFor(logging.DEBUG):
+        t = dict(m.timings_ms)
+        times = " ".join(f"{k}={t[k]:.2f}" if k in t else f"{k}=-"
+                         for k in ("sweep", "boolean", "contact", "slicing", "total"))
+        log.debug("CL %d %s:%d %s sweep_method=%s ms: %s", m.cl_index, m.source.file, m.source.line,
+                  m.status.value, m.sweep_method or "-", times)
+
+
+def _export(engine: BRepEngine, paths: list[Path]) -> list[Path]:
+    """Write the current IPW to each path (.step or .stl); a failure is logged, not raised, because
+    the results are complete without it."""
+    from fusioncut.engines.brep.export import export_ipw
+
+    written = []
+    for p in paths:
+        try:
+            export_ipw(engine, p)  # joins the cells into one solid and keeps OCCT's output quiet
+            written.append(p)
+        except Exception as e:  # noqa: BLE001 - OCP raises its own types; the run itself succeeded
+            log.error("could not write %s: %s", p, e)
+    return written
+
+
+# --------------------------------------------------------------------------------------------------
+# checkpoints
+
+
+def _write_run_state(ck_dir: Path, job_id: str) -> None:
+    ck_dir.mkdir(parents=True, exist_ok=True)
+    tmp = ck_dir / (RUN_STATE + ".tmp")
+    tmp.write_text(json.dumps({"job_hash": job_id, "fusioncut_version": __version__}))
+    os.replace(tmp, ck_dir / RUN_STATE)
+
+
+def _resume_point(engine: BRepEngine, out_dir: Path, job_id: str, total: int) -> tuple[int, list[dict[str, Any]]]:
+    """(first CL to compute, kept ``cl`` rows) from a checkpoint in ``out_dir``; (0, []) to start over.
+
+    Loads the engine state on success. The checkpoint must be of the same job hash and FusionCut
+    version, and the results on disk must hold exactly the CLs before it (later rows are dropped)."""
+    ck_dir = out_dir / CHECKPOINT_DIR
+    try:
+        state = json.loads((ck_dir / RUN_STATE).read_text())
+    except (OSError, ValueError):
+        return 0, []
+    if state.get("job_hash") != job_id or state.get("fusioncut_version") != __version__:
+        log.warning("the checkpoint in %s is of another job or FusionCut version; starting over", ck_dir)
+        return 0, []
+    next_cl = engine.load_checkpoint(ck_dir)
+    if not next_cl:
+        return 0, []
+    if next_cl > total:
+        log.warning("the checkpoint in %s is past the end of the toolpath; starting over", ck_dir)
+        return 0, []
+    try:
+        cl = load_results(out_dir).cl
+    except (FusionCutError, OSError, ValueError) as e:
+        log.warning("cannot read the results to resume (%s); starting over", e)
+        return 0, []
+    kept = cl[cl["cl"] < next_cl]
+    if list(kept["cl"]) != list(range(next_cl)):
+        log.warning("the results in %s do not hold CLs 0..%d of the checkpoint; starting over", out_dir, next_cl - 1)
+        return 0, []
+    return next_cl, kept[["operation", "status", "removed_volume_mm3", "ae_mm", "ap_mm", "time_ms"]].to_dict("records")
+
+
+def _clear_previous_run(out_dir: Path) -> None:
+    """Remove what an earlier run wrote besides the tables (the writer replaces those): checkpoint,
+    IPW exports and snapshots, failure shapes. Only FusionCut's own file names are touched."""
+    ck_dir = out_dir / CHECKPOINT_DIR
+    # the engine state goes first, so a half-cleared folder can never be resumed
+    for name in ("state.json", RUN_STATE):
+        (ck_dir / name).unlink(missing_ok=True)
+    for pattern in ("ipw-*", "*.tmp"):  # the engine's IPW files, whatever BRep flavour it writes
+        for p in ck_dir.glob(pattern):
+            p.unlink(missing_ok=True)
+    for pattern in ("ipw.step", "ipw.stl", "ipw_cl*.step"):
+        for p in out_dir.glob(pattern):
+            p.unlink(missing_ok=True)
+    for pattern in ("cl*_ipw.brep", "cl*_sweep.brep"):
+        for p in (out_dir / "failures").glob(pattern):
+            p.unlink(missing_ok=True)
+
+
+class _CtrlC:
+    """While active (main thread, default SIGINT handler only), the first Ctrl-C only sets
+    ``requested`` so the run stops after the CL in progress with a consistent checkpoint; a second
+    one raises KeyboardInterrupt at once. Elsewhere (service threads) nothing is changed."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+
+    def __enter__(self) -> _CtrlC:
+        if threading.current_thread() is threading.main_thread() \
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum: int, frame: Any) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        log.warning("Ctrl-C: stopping after the CL in progress (press again to stop at once)")
+
+    def __exit__(self, *exc: object) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+

@@ -71,8 +71,8 @@ from typing import Sequence
 
 import numpy as np
 
-from fusioncut.errors import GeometryError, InputError
-from fusioncut.model.engagement import CLStatus, EngagementMap, SliceEngagement
+from fusioncut.errors import GeometryError, InputError, SourceLocation
+from fusioncut.model.engagement import AngleInterval, CLStatus, EngagementMap, SliceEngagement
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, SpindleDirection
 
 _TWO_PI = 2.0 * math.pi
@@ -565,3 +565,193 @@ def compute_forces(
                               feed_per_tooth=None if emap.feed is not None else 0.0)
         )
     return out
+
+
+# ------------------------------------------------------------------------------------------------
+# chip thickness, and forces from saved result tables
+# ------------------------------------------------------------------------------------------------
+
+def peak_chip_thickness(emap: EngagementMap, tool: MillingTool, feed_per_tooth: float, *,
+                        dz: float | None = None) -> float:
+    """Largest uncut chip thickness (mm) over the engaged edge of CL ``emap`` at feed per tooth
+    ``feed_per_tooth`` (mm): ``c * max(sin(phi) * sin(kappa))`` over the engaged arcs of every band
+    (the model's ``h``, module docstring; bands as in :func:`compute_cl_forces`). Below full radial
+    immersion (``ae < R``) the arc never reaches ``phi = 90 deg`` and the chip is thinner than ``c``:
+    the chip thinning that chip-thickness feed control exploits. 0 without engagement; a failed map
+    raises :class:`GeometryError`."""
+    if emap.status == CLStatus.FAILED:
+        raise GeometryError(f"no engagement known ({emap.reason or 'engine failed'})", emap.cl_index)
+    if not (feed_per_tooth >= 0 and math.isfinite(feed_per_tooth)):
+        raise InputError(f"feed per tooth must be >= 0 mm, got {feed_per_tooth}")
+    if not emap.engaged_slices:
+        return 0.0
+    b = _bands(emap, tool, dz)
+    best = 0.0
+    for m in range(len(b.area)):
+        for q in range(b.entry.shape[1]):
+            if b.span[m, q] < 0:
+                continue
+            a, e = b.entry[m, q], b.entry[m, q] + b.span[m, q]
+            # sin is largest at pi/2 (+ 2 pi k) inside the arc, else at an end
+            k = math.ceil((a - math.pi / 2) / _TWO_PI - 1e-12)
+            top = 1.0 if math.pi / 2 + k * _TWO_PI <= e + 1e-12 else max(math.sin(a), math.sin(e))
+            best = max(best, top * float(b.sk[m]))
+    return feed_per_tooth * best
+
+
+def infer_slice_height(results: object) -> float:
+    """The engine's slice height (mm) behind a results directory, which the tables do not store.
+
+    The engine puts a slice in the middle of the part of its cell ``[k dz, (k+1) dz]`` in contact, so
+    with the right ``dz`` the rebuilt axial range of every CL with two or more slices (see
+    :func:`engagement_maps_from_results`) spans exactly its ``ap``. The candidates are the gaps
+    between neighbouring slices of a CL and twice the lowest slice height (a CL cutting from the tip
+    has its lowest slice at ``dz / 2``); the one that explains the most CLs wins (ties: the most
+    frequent). Without any CL of two or more slices every CL is a single band and any height at least
+    as large as every slice's reach serves; that is returned then.
+    """
+    sl = results.slices  # type: ignore[attr-defined]
+    cl = results.cl  # type: ignore[attr-defined]
+    z = sl[["cl", "z_tool_mm"]].drop_duplicates().sort_values(["cl", "z_tool_mm"])
+    per = z.groupby("cl")["z_tool_mm"].agg(["min", "max", "count"])
+    multi = per[per["count"] >= 2]
+    if not len(multi):
+        reach = float(z["z_tool_mm"].max()) if len(z) else 0.0
+        ap = float(cl["ap_mm"].max()) if len(cl) else 0.0
+        return max(1.0, 2.0 * (reach + ap) + 1.0)
+    gaps = z.groupby("cl")["z_tool_mm"].diff().dropna()
+    cands = _candidate_counts([gaps[gaps > 1e-9], 2.0 * multi["min"]])
+    ap = cl.drop_duplicates("cl", keep="last").set_index("cl")["ap_mm"].reindex(multi.index).to_numpy(dtype=float)
+    z0, z1 = multi["min"].to_numpy(dtype=float), multi["max"].to_numpy(dtype=float)
+    best, best_key = None, (-1, -1)
+    for dz, freq in cands[:20]:
+        k0, k1 = np.floor(z0 / dz + 1e-9), np.floor(z1 / dz + 1e-9)
+        a0 = np.maximum(k0 * dz, 2 * z0 - (k0 + 1) * dz)
+        a1 = np.minimum((k1 + 1) * dz, 2 * z1 - k1 * dz)
+        key = (int(np.count_nonzero(np.abs((a1 - a0) - ap) < 1e-6)), freq)
+        if key > best_key:
+            best, best_key = dz, key
+    return float(best)  # type: ignore[arg-type]
+
+
+def _candidate_counts(parts: list) -> list[tuple[float, int]]:
+    """Distinct values (rounded to 1 nm) of the given series with their counts, most frequent first."""
+    counts: dict[float, int] = {}
+    for part in parts:
+        for v in np.round(np.asarray(part, dtype=float), 6):
+            counts[float(v)] = counts.get(float(v), 0) + 1
+    return sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))
+
+
+def engagement_maps_from_results(results: object, dz: float | None = None) -> list[EngagementMap]:
+    """Engagement maps rebuilt from loaded result tables (:func:`fusioncut.io.results.load_results`),
+    one per ``cl`` row, in table order, for the force model.
+
+    The tables keep the engaged arcs of every slice but not the axial contact range nor the slice
+    height ``dz`` (mm; inferred by :func:`infer_slice_height` when not given). The range is rebuilt
+    from the engine's rule that a slice sits in the middle of the part of its cell in contact: the
+    lowest slice ``z0`` of cell ``k0`` gives the bottom ``2 z0 - (k0+1) dz`` (or the cell bottom when
+    it sits at the centre), the highest one the top ``2 z1 - k1 dz``; a CL with one engaged slice
+    gives ``z -/+ ap/2``. With the same ``dz`` :func:`compute_cl_forces` then rebuilds the engine's
+    bands exactly. Timings and non-engaged slices are not in the tables and are left out.
+    """
+    cl = results.cl  # type: ignore[attr-defined]
+    sl = results.slices  # type: ignore[attr-defined]
+    if dz is None:
+        dz = infer_slice_height(results)
+    if not (dz > 0 and math.isfinite(dz)):
+        raise InputError(f"slice height must be > 0 mm, got {dz}")
+    by_cl: dict[int, list[SliceEngagement]] = {}
+    if len(sl):
+        sl = sl.sort_values(["cl", "z_tool_mm", "interval"], kind="stable")
+        for (c, z), g in sl.groupby(["cl", "z_tool_mm"], sort=False):
+            ivs = tuple(AngleInterval(float(a), float(b)) for a, b in zip(g["entry_deg"], g["exit_deg"]))
+            first = g.iloc[0]
+            by_cl.setdefault(int(c), []).append(SliceEngagement(
+                z=float(z), z_machine=float(first["z_machine_mm"]), radius=float(first["radius_mm"]), intervals=ivs))
+    out = []
+    for row in cl.itertuples(index=False):
+        slices = tuple(by_cl.get(int(row.cl), ()))
+        axial = (0.0, 0.0)
+        if slices:
+            z0, z1 = slices[0].z, slices[-1].z
+            if len(slices) == 1:
+                half = 0.5 * float(row.ap_mm)
+                axial = (z0 - half, z0 + half)
+            else:
+                k0, k1 = math.floor(z0 / dz + 1e-9), math.floor(z1 / dz + 1e-9)
+                axial = (max(k0 * dz, 2 * z0 - (k0 + 1) * dz), min((k1 + 1) * dz, 2 * z1 - k1 * dz))
+        feed = None if math.isnan(row.feed_mm_min) else float(row.feed_mm_min)
+        out.append(EngagementMap(
+            cl_index=int(row.cl), position=(float(row.x), float(row.y), float(row.z)),
+            start=(float(row.x0), float(row.y0), float(row.z0)), tool=str(row.tool),
+            spindle=SpindleDirection(str(row.spindle)), feed_angle=float(row.feed_angle_machine_deg),
+            status=CLStatus(str(row.status)), source=SourceLocation(str(row.file), int(row.line)), feed=feed,
+            operation=str(row.operation), slices=slices, contact_area=float(row.contact_area_mm2),
+            shank_contact_area=float(row.shank_contact_area_mm2), removed_volume=float(row.removed_volume_mm3),
+            reason=str(row.reason), warnings=tuple(w for w in str(row.warnings).split(" | ") if w),
+            sweep_method=str(row.sweep_method), axial_range=axial,
+        ))
+    return out
+
+
+FORCE_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("cl", "", "CL index"),
+    ("file", "", "source file of the move"),
+    ("line", "", "1-based source line"),
+    ("operation", "", "operation"),
+    ("status", "", "engagement status of the CL (engaged, air, rapid, failed)"),
+    ("feed_mm_min", "mm/min", "programmed feed along the path"),
+    ("rpm", "1/min", "spindle speed"),
+    ("feed_per_tooth_mm", "mm", "horizontal feed per tooth c"),
+    *((f"f{a}{fr}_{k}_N", "N", f"{'largest |F' + a + '|' if k == 'peak' else 'mean F' + a} over a revolution, "
+       f"{'feed frame (x feed, y 90 deg CCW, z up)' if not fr else 'machine frame'}")
+      for fr in ("", "_machine") for a in "xyz" for k in ("peak", "mean")),
+    ("resultant_peak_N", "N", "largest |F| over a revolution"),
+    ("resultant_mean_N", "N", "mean |F| over a revolution"),
+    ("torque_peak_Nm", "N*m", "largest cutting torque over a revolution"),
+    ("torque_mean_Nm", "N*m", "mean cutting torque"),
+    ("power_peak_W", "W", "largest spindle cutting power"),
+    ("power_mean_W", "W", "mean spindle cutting power"),
+    ("chip_peak_mm", "mm", "largest uncut chip thickness"),
+)
+"""Columns of :func:`forces_table`: (name, unit, meaning). Forces act on the tool."""
+
+
+def forces_table(
+    maps: Sequence[EngagementMap],
+    tool: MillingTool,
+    coefficients: CuttingCoefficients,
+    rpm: float | Sequence[float | None],
+    *,
+    dz: float | None = None,
+    samples: int = 360,
+):  # -> pandas.DataFrame (imported lazily: the force model itself does not need pandas)
+    """Per-CL force summary (columns :data:`FORCE_COLUMNS`, units in the names), one row per map.
+
+    ``rpm`` is one spindle speed (rev/min) or one per map. Rapids, failed CLs, feed moves without a
+    feed and CLs without a spindle speed get NaN forces (unknown, not zero); air CLs get zeros.
+    """
+    import pandas as pd
+
+    rpms = [rpm] * len(maps) if isinstance(rpm, (int, float)) else list(rpm)
+    if len(rpms) != len(maps):
+        raise InputError(f"{len(rpms)} spindle speeds for {len(maps)} CLs")
+    names = [c[0] for c in FORCE_COLUMNS]
+    rows = []
+    for emap, n in zip(maps, rpms):
+        row: dict[str, object] = dict.fromkeys(names, math.nan)
+        row.update(cl=emap.cl_index, file=str(emap.source.file), line=int(emap.source.line),
+                   operation=emap.operation, status=emap.status.value,
+                   feed_mm_min=math.nan if emap.feed is None else float(emap.feed),
+                   rpm=math.nan if not n else float(n))
+        known = (emap.status not in (CLStatus.FAILED, CLStatus.RAPID) and emap.feed is not None and bool(n))
+        if known:
+            f = compute_cl_forces(emap, tool, coefficients, rpm=float(n), dz=dz, samples=samples)  # type: ignore[arg-type]
+            s = f.summary()
+            s.pop("cl_index")
+            row.update(s)
+            row["chip_peak_mm"] = peak_chip_thickness(emap, tool, f.feed_per_tooth, dz=dz)
+        rows.append(row)
+    df = pd.DataFrame(rows, columns=names)
+    return df.astype({"cl": "int64", "line": "int64", "file": "string", "operation": "string", "status": "string"})

@@ -1,14 +1,30 @@
-"""Cutting-force commands: ``fusioncut calibrate`` (coefficients from slot tests)."""
+"""Cutting-force commands.
+
+* ``fusioncut calibrate CSV``: linear edge-force coefficients from slot tests.
+* ``fusioncut forces RESULTS_DIR``: per-CL forces of a run (``forces.csv``, ``forces.parquet`` and
+  ``forces.png`` in the results directory).
+* ``fusioncut advise RESULTS_DIR --program FILE --max-force N --out NEW``: feed advice, the program
+  rewritten with only its F words changed, the advice table and a plot of programmed vs advised feed.
+
+Results tables do not keep the spindle speed, the flute count or helix angle, nor the engine's slice
+height: the speed and the tool come from ``--program`` (its S words and tool comments) or from
+``--rpm``/``--flutes``/``--helix`` (the tool then from the results' metadata, flat and ball end mills
+only); the slice height is inferred from the slices (``--slice-height`` overrides).
+"""
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
+from typing import Any, Optional
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
+
+console = Console()
 
 
 def _fmt(value: float, digits: int = 4) -> str:
@@ -32,7 +48,6 @@ def calibrate(
     tests = read_slot_tests_csv(csv_file)
     coeffs, fit = calibrate_from_slot_tests(tests.c, tests.fx, tests.fy, tests.fz, axial_depth, flutes)
 
-    console = Console()
     table = Table(title=f"Cutting coefficients from {fit.tests} slot tests ({csv_file.name}, a = {axial_depth:g} mm, "
                   f"{flutes} flutes)")
     table.add_column("coefficient")
@@ -55,5 +70,287 @@ def calibrate(
         console.print("[yellow]note:[/] two tests fit the lines exactly; no error estimate is possible.")
 
 
+# --------------------------------------------------------------------------------------------------
+# shared set-up of forces and advise
+
+
+@dataclasses.dataclass
+class _Setup:
+    results: Any
+    maps: list
+    groups: dict[str, list[int]]  # tool label -> row indices
+    tools: dict[str, Any]
+    rpms: list[float | None]
+    coefficients: Any
+    dz: float
+    program: Any = None
+
+
+def _tool_from_metadata(label: str, meta: dict[str, Any]) -> Any:
+    from fusioncut.errors import InputError
+    from fusioncut.model import BallEndMill, FlatEndMill
+
+    desc = (meta.get("tools") or {}).get(label) or {}
+    kind, d, fl = desc.get("kind"), desc.get("diameter_mm"), desc.get("flute_length_mm")
+    if kind not in ("flat", "ball") or not d or not fl:
+        raise InputError(f"tool {label}: the results only describe it as {desc or 'nothing'}; give the program "
+                         "(--program) so its tool comments define it")
+    cls = FlatEndMill if kind == "flat" else BallEndMill
+    return cls(diameter=float(d), flute_length=float(fl))
+
+
+def _setup(results_dir: Path, program: Optional[Path], material: str, rpm: Optional[float], flutes: Optional[int],
+           helix: Optional[float], slice_height: Optional[float]) -> _Setup:
+    from fusioncut.analysis.feed import same_source_file
+    from fusioncut.analysis.forces import engagement_maps_from_results, infer_slice_height
+    from fusioncut.analysis.materials import get_coefficients
+    from fusioncut.errors import InputError
+    from fusioncut.io.results import load_results
+
+    coefficients = get_coefficients(material)
+    results = load_results(results_dir)
+    if not len(results.cl):
+        raise InputError("the results hold no CL", results_dir)
+    dz = slice_height if slice_height is not None else infer_slice_height(results)
+    maps = engagement_maps_from_results(results, dz)
+    tp = None
+    if program is not None:
+        from fusioncut.io.gcode import read_gcode
+
+        tp = read_gcode(program)
+    # tools by label, and the spindle speed of each CL
+    tools: dict[str, Any] = {}
+    groups: dict[str, list[int]] = {}
+    for i, m in enumerate(maps):
+        groups.setdefault(m.tool, []).append(i)
+    for label in groups:
+        tool = None
+        if tp is not None:
+            tool = next((t for t in tp.tools.values() if t.label == label), None)
+        if tool is None:
+            tool = _tool_from_metadata(label, results.metadata)
+        changes: dict[str, Any] = {}
+        if flutes is not None:
+            changes["flutes"] = flutes
+        if helix is not None:
+            changes["helix_angle"] = helix
+        tools[label] = dataclasses.replace(tool, **changes) if changes else tool
+    rpms: list[float | None]
+    if rpm is not None:
+        if not (rpm > 0 and math.isfinite(rpm)):
+            raise InputError(f"--rpm must be > 0 rev/min, got {rpm}")
+        rpms = [rpm] * len(maps)
+    elif tp is not None:
+        by_line = {m.source.line: m.spindle_rpm for m in tp.moves if m.spindle_rpm}
+        rpms = [by_line.get(m.source.line) if same_source_file(str(m.source.file), str(program)) else None for m in maps]
+    else:
+        raise InputError("the spindle speed is not in the results: give --rpm or the program (--program)")
+    return _Setup(results, maps, groups, tools, rpms, coefficients, dz, tp)
+
+
+_MATERIAL_HELP = "Work material / tool pair of the cutting coefficients (see fusioncut.analysis.materials)."
+
+
+@friendly_errors
+def forces(
+    results_dir: Path = typer.Argument(..., help="Results directory of a run."),
+    program: Optional[Path] = typer.Option(None, "--program", help="The program the results came from: spindle "
+                                                                    "speeds and tool geometry."),
+    material: str = typer.Option("al7075-t6", "--material", help=_MATERIAL_HELP),
+    rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min) for every CL."),
+    flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
+    helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
+    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm "
+                                                                              "(default: inferred)."),
+    samples: int = typer.Option(360, "--samples", min=1, help="Spindle angles per revolution."),
+    plot: bool = typer.Option(True, "--plot/--no-plot", help="Also draw forces.png."),
+) -> None:
+    """Per-CL cutting forces of a run: forces.csv / forces.parquet (+ forces.png) in RESULTS_DIR.
+
+    Columns (forces on the tool): peak and mean Fx Fy Fz in the feed frame (x along the feed, y 90 deg
+    counter-clockwise from it, z up the tool axis) and in the machine frame (N), peak and mean
+    resultant |F| (N), torque (N*m), spindle power (W), peak chip thickness (mm); feed (mm/min), rpm,
+    feed per tooth (mm). Rapids and failed CLs have empty cells.
+    """
+    import pandas as pd
+
+    from fusioncut.analysis.forces import FORCE_COLUMNS, forces_table
+
+    s = _setup(results_dir, program, material, rpm, flutes, helix, slice_height)
+    parts = []
+    for label, idx in s.groups.items():
+        part = forces_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, [s.rpms[i] for i in idx],
+                            dz=s.dz, samples=samples)
+        part.index = idx
+        parts.append(part)
+    table = pd.concat(parts).sort_index()
+    _write_table(table, results_dir / "forces", {c: (u, d) for c, u, d in FORCE_COLUMNS},
+                 {"material": material, "coefficients": s.coefficients.as_dict(), "slice_height_mm": s.dz,
+                  "tools": {k: _tool_info(t) for k, t in s.tools.items()}})
+    wrote = ["forces.csv", "forces.parquet"]
+    if plot:
+        from fusioncut.viz.plots import plot_forces
+
+        plot_forces(table, out=results_dir / "forces.png")
+        wrote.append("forces.png")
+    known = table[table["resultant_peak_N"].notna()]
+    summary = Table(title=f"Cutting forces ({s.coefficients.name or material}; slice height {s.dz:g} mm)")
+    for col in ("CLs with forces", "max |F| peak N", "mean |F| mean N", "max torque N*m", "max power W",
+                "max chip mm"):
+        summary.add_column(col, justify="right")
+    summary.add_row(str(len(known)), _fmt(known["resultant_peak_N"].max()), _fmt(known["resultant_mean_N"].mean()),
+                    _fmt(known["torque_peak_Nm"].max()), _fmt(known["power_peak_W"].max()),
+                    _fmt(known["chip_peak_mm"].max()))
+    console.print(summary)
+    unknown = int(((table["status"] != "rapid") & table["resultant_peak_N"].isna()).sum())
+    if unknown:
+        console.print(f"[yellow]note:[/] {unknown} feed CL(s) without forces (failed, or no feed / spindle speed)")
+    console.print(f"wrote {', '.join(wrote)} in {results_dir}", highlight=False)
+
+
+def _tool_info(t: Any) -> dict[str, Any]:
+    return {"kind": t.kind, "diameter_mm": t.diameter, "flute_length_mm": t.flute_length, "flutes": t.flutes,
+            "helix_deg": t.helix_angle}
+
+
+def _write_table(table: Any, stem: Path, columns: dict[str, tuple[str, str]], meta: dict[str, Any]) -> None:
+    """``stem``.csv and ``stem``.parquet, the Parquet fields carrying their unit and meaning."""
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    arrow = pa.Table.from_pandas(table.reset_index(drop=True), preserve_index=False)
+    fields = []
+    for f in arrow.schema:
+        unit, desc = columns.get(f.name, ("", ""))
+        fields.append(f.with_metadata({"unit": unit, "description": desc}))
+    schema = pa.schema(fields, metadata={b"fusioncut": json.dumps(meta, sort_keys=True).encode()})
+    arrow = arrow.cast(schema)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(arrow, stem.with_suffix(".parquet"))
+    table.to_csv(stem.with_suffix(".csv"), index=False, na_rep="", lineterminator="\n")
+
+
+@friendly_errors
+def advise(
+    results_dir: Path = typer.Argument(..., help="Results directory of a run of PROGRAM."),
+    program: Path = typer.Option(..., "--program", help="The G-code program the results came from."),
+    out: Path = typer.Option(..., "--out", "-o", help="The rewritten program (only F words change)."),
+    max_force: Optional[float] = typer.Option(None, "--max-force", help="Peak resultant force limit (N)."),
+    max_chip: Optional[float] = typer.Option(None, "--max-chip", help="Peak chip thickness limit (mm)."),
+    max_power: Optional[float] = typer.Option(None, "--max-power", help="Peak spindle power limit (W)."),
+    max_mrr: Optional[float] = typer.Option(None, "--max-mrr", help="Removal rate limit (mm³/min)."),
+    min_feed: Optional[float] = typer.Option(None, "--min-feed", help="Lowest feed (mm/min; default 10 % of "
+                                                                      "the smallest programmed cutting feed)."),
+    max_feed: Optional[float] = typer.Option(None, "--max-feed", help="Highest feed (mm/min; default the largest "
+                                                                      "programmed cutting feed)."),
+    air_feed: bool = typer.Option(False, "--air-feed", help="Feed air cuts at --max-feed."),
+    raise_ramps: bool = typer.Option(False, "--raise-ramps", help="Let moves going down be fed faster than "
+                                                                  "programmed."),
+    quantum: float = typer.Option(0.05, "--quantum", help="Feed step, fraction of the programmed feed."),
+    min_run: Optional[float] = typer.Option(None, "--min-run", help="Shortest stretch (mm) a raised feed must "
+                                                                    "last (default: tool diameter)."),
+    material: str = typer.Option("al7075-t6", "--material", help=_MATERIAL_HELP),
+    rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min; default: the program's S)."),
+    flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
+    helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
+    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Feed plot (.png/.svg; default OUT's name + "
+                                                             "_feed.png)."),
+) -> None:
+    """Advise feeds that keep the load at a limit, and rewrite PROGRAM with them (only F words change).
+
+    Writes OUT, OUT's name + _advice.csv (per CL: programmed and advised feed mm/min, what limited it,
+    loads at both feeds) and the plot. Feeds are mm/min here; the program gets them in its own units.
+    """
+    import pandas as pd
+
+    from fusioncut.analysis.feed import FEED_COLUMNS, FeedAdvice, FeedLimit, same_source_file, advise_feeds
+    from fusioncut.errors import InputError
+    from fusioncut.io.gcode_rewrite import rewrite_gcode_file
+    from fusioncut.viz.plots import SUFFIX_FORMATS, plot_feed_advice
+
+    plot = plot or out.with_name(out.stem + "_feed.png")
+    if plot.suffix.lower() not in SUFFIX_FORMATS:
+        raise ValueError(f"{plot}: unsupported plot format {plot.suffix!r} (use .png or .svg)")
+    limit = FeedLimit(max_force=max_force, max_chip_thickness=max_chip, max_power=max_power, max_mrr=max_mrr,
+                      min_feed=min_feed, max_feed=max_feed, air_feed=air_feed, raise_ramps=raise_ramps)
+    s = _setup(results_dir, program, material, rpm, flutes, helix, slice_height)
+    mine = [i for i, m in enumerate(s.maps) if same_source_file(str(m.source.file), str(program))]
+    if not mine:
+        raise InputError(f"no CL of the results comes from {program.name}", results_dir)
+    _check_same_program(s, mine, program)
+
+    # one feed range for every tool of the program (defaults from all its engaged CLs)
+    cutting = [s.maps[i].feed for i in mine if s.maps[i].status.value == "engaged" and s.maps[i].feed]
+    if limit.min_feed is None or limit.max_feed is None:
+        if not cutting:
+            raise InputError("no engaged CL with a programmed feed: give --min-feed and --max-feed", results_dir)
+        limit = dataclasses.replace(limit, min_feed=limit.min_feed if limit.min_feed is not None else 0.1 * min(cutting),
+                                    max_feed=limit.max_feed if limit.max_feed is not None else max(cutting))
+        if limit.min_feed > limit.max_feed:  # type: ignore[operator]
+            raise InputError(f"--min-feed {limit.min_feed:g} is above --max-feed {limit.max_feed:g} mm/min")
+    parts, advices = [], []
+    lengths = s.results.cl["length_mm"].to_numpy(dtype=float)
+    wanted = set(mine)
+    for label, idx in s.groups.items():
+        idx = [i for i in idx if i in wanted]
+        if not idx:
+            continue
+        adv = advise_feeds([s.maps[i] for i in idx], s.tools[label], s.coefficients, limit,
+                           rpm=[s.rpms[i] for i in idx], dz=s.dz, lengths=lengths[idx], quantum=quantum,
+                           min_run_length=min_run)
+        adv.table.index = idx
+        parts.append(adv.table)
+        advices.append(adv)
+    table = pd.concat(parts).sort_index()
+    advice = FeedAdvice(table=table.reset_index(drop=True), limit=limit, quantum=quantum,
+                        min_run_length=advices[0].min_run_length, slice_height=s.dz)
+    result = rewrite_gcode_file(program, advice.line_feeds(), out)
+    _write_table(table, out.with_name(out.stem + "_advice"), {c: (u, d) for c, u, d in FEED_COLUMNS},
+                 {"program": str(program), "limit": dataclasses.asdict(advice.limit), "quantum": quantum,
+                  "min_run_length_mm": advice.min_run_length, "material": material})
+    plot_feed_advice(advice, out=plot)
+
+    t = advice.table
+    prog, adv_f = t["programmed_feed_mm_min"], t["advised_feed_mm_min"]
+    unreachable = int(t["note"].str.contains("unreachable", regex=False).sum())
+    console.print(f"feed advice for {program.name}: {len(t)} CLs; feed time {advice.cycle_time_s('programmed'):.1f} s "
+                  f"programmed -> {advice.cycle_time_s():.1f} s advised; {int((adv_f < prog).sum())} CLs slower, "
+                  f"{int((adv_f > prog).sum())} faster; {advice.feed_changes()} feed changes; "
+                  f"{len(result.changed_lines)} lines changed", highlight=False)
+    counts = t["reason"].value_counts()
+    console.print("advice set by: " + ", ".join(f"{k} {v}" for k, v in counts.items()), highlight=False)
+    if unreachable:
+        console.print(f"[yellow]note:[/] {unreachable} CL(s) exceed the limit at every feed down to --min-feed "
+                      f"({advice.limit.min_feed:g} mm/min): note 'unreachable' in the advice table", highlight=False)
+    for note in result.notes[:10]:
+        console.print(f"[yellow]note:[/] {note}", highlight=False)
+    console.print(f"wrote {out}, {out.stem}_advice.csv/.parquet, {plot.name}", highlight=False)
+
+
+def _check_same_program(s: _Setup, rows: list[int], program: Path) -> None:
+    """The results must come from this very program: their feeds per line must be the program's."""
+    from fusioncut.errors import InputError, SourceLocation
+
+    feeds: dict[int, set[float]] = {}
+    for m in s.program.moves:
+        if m.feed is not None:
+            feeds.setdefault(m.source.line, set()).add(round(m.feed, 6))
+    for i in rows:
+        m = s.maps[i]
+        if m.feed is None:
+            continue
+        have = feeds.get(m.source.line)
+        if not have or round(m.feed, 6) not in have:
+            got = ", ".join(f"{f:g}" for f in sorted(have)) if have else "no feed move"
+            raise InputError(f"the results say CL {m.cl_index} feeds at {m.feed:g} mm/min here, the program has "
+                             f"{got}: were the results computed from this program?",
+                             SourceLocation(str(program), m.source.line))
+
+
 def register(app: typer.Typer) -> None:
     app.command("calibrate")(calibrate)
+    app.command("forces")(forces)
+    app.command("advise")(advise)

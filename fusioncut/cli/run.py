@@ -1,14 +1,26 @@
-"""``fusioncut demo``, ``fusioncut run JOB.json`` and ``fusioncut schema``."""
+"""``fusioncut demo``, ``fusioncut run JOB.json`` and ``fusioncut schema``.
+
+Both runs show one progress bar per operation (CLs done, CL/s, time left) and one for the whole
+program, write a log (``--log-file``, default ``<out>/fusioncut.log``; ``--log-level debug`` records
+every CL with its source ``file:line``, status, sweep method and timings) and, unless
+``--no-ipw-export``, the final workpiece as ``ipw.step`` and ``ipw.stl`` in the results folder.
+``run`` resumes from the checkpoint of an interrupted run of the same job unless ``--fresh``.
+"""
 from __future__ import annotations
 
 import json
 import logging
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from enum import Enum
 from pathlib import Path
+from typing import Optional
 
 import typer
 from rich.console import Console
 from rich.logging import RichHandler
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
@@ -17,36 +29,95 @@ from fusioncut.model import EngagementMap
 
 console = Console()
 
+EXIT_INTERRUPTED = 130  # the shell's code for "stopped by Ctrl-C": the results are incomplete
 
-def _setup_logging(out_dir: Path, level: str) -> None:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    file_handler = logging.FileHandler(out_dir / "fusioncut.log", mode="w")
+
+class LogLevel(str, Enum):
+    debug = "debug"
+    info = "info"
+    warning = "warning"
+    error = "error"
+
+
+@contextmanager
+def _logging(log_file: Path, level: LogLevel, append: bool) -> Iterator[None]:
+    """Log FusionCut's records at ``level`` into ``log_file`` and warnings to the terminal, for the
+    duration of one command (handlers are removed again, so repeated runs in one process, as in the
+    tests, do not pile them up)."""
+    log_file.parent.mkdir(parents=True, exist_ok=True)
+    lvl = getattr(logging, level.value.upper())
+    file_handler = logging.FileHandler(log_file, mode="a" if append else "w", encoding="utf-8")
     file_handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    logging.basicConfig(level=getattr(logging, level.upper(), logging.INFO), force=True,
-                        handlers=[file_handler, RichHandler(console=Console(stderr=True), level=logging.WARNING,
-                                                            show_path=False)])
+    file_handler.setLevel(lvl)
+    term_handler = RichHandler(console=Console(stderr=True), level=logging.WARNING, show_path=False)
+    pkg = logging.getLogger("fusioncut")
+    old_level = pkg.level
+    # the terminal shows warnings whatever the file's level is
+    pkg.setLevel(min(lvl, logging.WARNING))
+    root = logging.getLogger()
+    root.addHandler(file_handler)
+    root.addHandler(term_handler)
+    try:
+        yield
+    finally:
+        root.removeHandler(file_handler)
+        root.removeHandler(term_handler)
+        file_handler.close()
+        pkg.setLevel(old_level)
 
 
-def _progress():
-    return Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                    TextColumn("{task.fields[rate]:.0f} CL/s"), TimeRemainingColumn(), console=console,
-                    transient=True)
+def _clock(seconds: float | None) -> str:
+    if seconds is None or seconds != seconds or seconds == float("inf"):
+        return "-:--:--"
+    s = int(round(seconds))
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
 
 
-def _run_with_progress(start):
-    with _progress() as bar:
-        task = bar.add_task("CWE", total=None, rate=0.0)
-        state = {"op": None}
+class _ProgressReporter:
+    """One bar per operation plus one for the program. CL/s counts the CLs computed by this run
+    since the bar's first CL began; the time left is the CLs still to do at that rate."""
 
-        def on_cl(m: EngagementMap, total: int) -> None:
-            if m.operation != state["op"]:
-                state["op"] = m.operation
-                bar.update(task, description=m.operation or "CWE")
-            done = bar.tasks[0].completed + 1
-            elapsed = bar.tasks[0].elapsed or 1e-9
-            bar.update(task, total=total, completed=done, rate=done / elapsed)
+    def __init__(self, bar: Progress) -> None:
+        self.bar = bar
+        self.tasks: dict[str, int] = {}
+        self.overall: int | None = None
+        self.started: dict[int, tuple[float, int]] = {}  # task -> (start time, CLs computed since)
+        self.last = time.monotonic()
 
-        return start(on_cl)
+    def on_start(self, plan) -> None:  # plan: fusioncut.runner.RunPlan
+        self.overall = self.bar.add_task("all operations", total=plan.total, completed=plan.start_at,
+                                         rate="", eta="")
+        for op, n in plan.expected.items():
+            self.tasks[op] = self.bar.add_task(f"  {op or '(no operation)'}", total=n,
+                                               completed=plan.done.get(op, 0), rate="", eta="")
+        self.last = time.monotonic()
+
+    def on_cl(self, m: EngagementMap, total: int) -> None:
+        now = time.monotonic()
+        for task in (self.tasks.get(m.operation), self.overall):
+            if task is None:
+                continue
+            # a bar's clock starts when its first CL started, i.e. when the previous CL ended
+            start, n = self.started.get(task, (self.last, 0))
+            n += 1
+            self.started[task] = (start, n)
+            t = self.bar.tasks[self._index(task)]
+            rate = n / max(now - start, 1e-9)
+            left = max((t.total or 0) - t.completed - 1, 0)
+            self.bar.update(task, advance=1, rate=f"{rate:.1f} CL/s", eta=_clock(left / rate))
+        self.last = now
+
+    def _index(self, task_id: int) -> int:
+        return next(i for i, t in enumerate(self.bar.tasks) if t.id == task_id)
+
+
+def _run_with_progress(start: Callable[..., object]):
+    """Call ``start(on_cl=..., on_start=...)`` with a live progress display."""
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[rate]}"), TextColumn("{task.fields[eta]}"), console=console,
+                  transient=True) as bar:
+        reporter = _ProgressReporter(bar)
+        return start(on_cl=reporter.on_cl, on_start=reporter.on_start)
 
 
 def _print_summary(result) -> None:
@@ -62,8 +133,19 @@ def _print_summary(result) -> None:
     console.print(f"stock {result.stock_volume:.1f} mm³ − final {result.final_volume:.1f} mm³ = "
                   f"Σ removed {result.removed_volume:.1f} mm³ (relative error {result.conservation_error:.1e}); "
                   f"{result.seconds:.1f} s")
+    if result.resumed_from:
+        console.print(f"resumed from the checkpoint at CL {result.resumed_from}")
+    if result.exported:
+        console.print("workpiece written to " + ", ".join(p.name for p in result.exported), highlight=False)
     if result.interrupted:
-        console.print("[yellow]interrupted: the results of every finished CL were kept[/]")
+        console.print("[yellow]interrupted: the results of every finished CL and a checkpoint were kept; "
+                      "run the same command again to resume[/]")
+        raise typer.Exit(EXIT_INTERRUPTED)
+
+
+LOG_FILE_HELP = "log file (default: <out>/fusioncut.log)"
+LOG_LEVEL_HELP = "log file level; debug records every CL (source file:line, status, sweep method, timings)"
+IPW_HELP = "write the final workpiece as ipw.step and ipw.stl into the results folder"
 
 
 def register(app: typer.Typer) -> None:
@@ -72,32 +154,41 @@ def register(app: typer.Typer) -> None:
     def demo(out: Path = typer.Option(Path("fusioncut-out/demo"), help="results folder"),
              slice_height: float = typer.Option(1.0, help="axial slice spacing, mm"),
              sweep: str = typer.Option("exact", help="exact, or sampled (tool copies, the published method)"),
-             log_level: str = typer.Option("info", help="log file level")) -> None:
+             log_file: Optional[Path] = typer.Option(None, help=LOG_FILE_HELP),
+             log_level: LogLevel = typer.Option(LogLevel.info, case_sensitive=False, help=LOG_LEVEL_HELP),
+             ipw_export: bool = typer.Option(True, "--ipw-export/--no-ipw-export", help=IPW_HELP)) -> None:
         """Mill the built-in demo block (face, slot, trochoidal, contour, ball finish) and summarise."""
         from fusioncut.demo import demo_stock, demo_toolpath
         from fusioncut.runner import run_toolpath
 
-        _setup_logging(out, log_level)
         if sweep not in ("exact", "sampled"):
             raise typer.BadParameter("--sweep is exact or sampled")
         opts = EngineOptions(slice_height=slice_height, max_segment_length=2.0, sweep=sweep,  # type: ignore[arg-type]
                              failure_dir=out / "failures")
-        result = _run_with_progress(lambda cb: run_toolpath(demo_toolpath(), demo_stock(), out, opts, on_cl=cb))
+        with _logging(log_file or out / "fusioncut.log", log_level, append=False):
+            result = _run_with_progress(lambda **cb: run_toolpath(demo_toolpath(), demo_stock(), out, opts,
+                                                                 export_ipw=ipw_export, **cb))
         _print_summary(result)
 
     @app.command()
     @friendly_errors
     def run(job_file: Path = typer.Argument(..., help="job JSON (see `fusioncut schema`)"),
             out: Path = typer.Option(None, help="results folder (default: fusioncut-out/<job name>)"),
-            log_level: str = typer.Option("info", help="log file level")) -> None:
-        """Run a job file."""
+            fresh: bool = typer.Option(False, "--fresh",
+                                       help="start over, ignoring a checkpoint of an interrupted run"),
+            log_file: Optional[Path] = typer.Option(None, help=LOG_FILE_HELP),
+            log_level: LogLevel = typer.Option(LogLevel.info, case_sensitive=False, help=LOG_LEVEL_HELP),
+            ipw_export: bool = typer.Option(True, "--ipw-export/--no-ipw-export", help=IPW_HELP)) -> None:
+        """Run a job file; an interrupted run of the same job continues from its checkpoint."""
         from fusioncut.io.job import load_job
         from fusioncut.runner import run_job
 
         job, base = load_job(job_file)
         out = out or Path("fusioncut-out") / job.name
-        _setup_logging(out, log_level)
-        result = _run_with_progress(lambda cb: run_job(job, base, out, on_cl=cb))
+        # a resumed run appends to the log of the run it continues
+        with _logging(log_file or out / "fusioncut.log", log_level, append=not fresh):
+            result = _run_with_progress(lambda **cb: run_job(job, base, out, resume=not fresh,
+                                                             export_ipw=ipw_export, **cb))
         _print_summary(result)
 
     @app.command()

@@ -21,8 +21,12 @@ class EngineOptions:
     this length (None: as programmed). ``chord_tolerance``: helices / ZX / YZ arcs become chords within
     this distance of the path. ``sweep``: "exact" or "sampled" (tool copies every R/4, the published
     method). ``failure_dir``: where the shapes of a failed Boolean are saved as .brep.
-    ``merge_growth``: merge same-surface faces of the workpiece when its face count grew by this
-    fraction since the last merge.
+    ``merge_growth``: merge same-surface faces of a workpiece cell when its face count grew by this
+    fraction since the last merge. ``cell_size``: the workpiece is kept as square columns of this
+    size (mm) so that each Boolean touches a bounded piece (flat per-CL cost on long programs);
+    ``None`` (the default) keeps it whole. Cells give the whole workpiece's results on lines and
+    arcs (tested to 0.001° and 1e-6), but on helical entries the nearly tangent floors still make
+    cell Booleans disagree with the whole workpiece: until that is fixed, cells are opt-in.
     """
 
     slice_height: float = 1.0
@@ -31,7 +35,9 @@ class EngineOptions:
     sweep: Literal["exact", "sampled"] = "exact"
     failure_dir: Path | None = None
     merge_growth: float = 0.5
+    fuzzy: float = 1e-6
     fuzzy_retries: tuple[float, ...] = (1e-5, 1e-4)
+    cell_size: float | None = None
 
 
 class EngagementEngine(Protocol):

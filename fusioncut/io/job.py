@@ -9,12 +9,13 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from fusioncut.errors import InputError
-from fusioncut.model.stock import BoxStock, CylinderStock, SolidStock, Stock
+from fusioncut.model.moves import Toolpath
+from fusioncut.model.stock import BoxStock, CylinderStock, Stock
 from fusioncut.model.tools import (AptCutter, AptParameters, BallEndMill, BullNoseEndMill, ChamferMill, FlatEndMill,
                                    MillingTool, SpindleDirection, TaperedEndMill)
 
@@ -25,7 +26,9 @@ class _Strict(BaseModel):
 
 class StockSpec(_Strict):
     """``box`` (min, max corners), ``cylinder`` (base_center, radius, height), ``file`` (STEP/BREP path)
-    or ``infer`` (the feed moves' extents plus ``margin``)."""
+    or ``infer`` (the feed moves' extents plus ``margin``, mm). ``top`` (mm, ``infer`` only) states
+    the stock top instead of guessing it (see :func:`fusioncut.io.stock.infer_stock`): give it whenever
+    the CAM setup says where the top is."""
 
     kind: Literal["box", "cylinder", "file", "infer"]
     min: tuple[float, float, float] | None = None
@@ -34,7 +37,8 @@ class StockSpec(_Strict):
     radius: float | None = None
     height: float | None = None
     path: str | None = None
-    margin: float = 2.0
+    margin: float = Field(2.0, ge=0, allow_inf_nan=False)
+    top: float | None = Field(None, allow_inf_nan=False)
 
     @model_validator(mode="after")
     def _complete(self) -> StockSpec:
@@ -42,6 +46,8 @@ class StockSpec(_Strict):
         missing = [k for k in need[self.kind] if getattr(self, k) is None]
         if missing:
             raise ValueError(f"{self.kind} stock needs {', '.join(missing)}")
+        if self.top is not None and self.kind != "infer":
+            raise ValueError(f"'top' applies to inferred stock only; a {self.kind} stock states its own top")
         return self
 
 
@@ -84,12 +90,25 @@ class ToolSpec(_Strict):
 
 
 class Options(_Strict):
-    """Engine options, see :class:`fusioncut.engines.base.EngineOptions`."""
+    """Engine options (see :class:`fusioncut.engines.base.EngineOptions`; lengths mm) and run options.
+
+    Run options do not change the results and are left out of the job hash: ``checkpoint_every``
+    (save a resumable checkpoint every that many CLs; 0: only when the run ends or is interrupted)
+    and ``snapshot_cls`` (write the workpiece as ``ipw_cl<N>.step`` after each of these CL indices).
+    """
 
     slice_height: float = Field(1.0, gt=0)
     max_segment_length: float | None = Field(None, gt=0)
     chord_tolerance: float = Field(1e-3, gt=0)
     sweep: Literal["exact", "sampled"] = "exact"
+    cell_size: float | None = Field(None, gt=0)
+    checkpoint_every: int = Field(200, ge=0)
+    snapshot_cls: list[Annotated[int, Field(ge=0)]] = []
+
+
+# Options that steer the run but not its results: excluded from the engine options and the job hash,
+# so changing them neither breaks a resume nor pretends the results differ.
+RUN_OPTIONS = frozenset({"checkpoint_every", "snapshot_cls"})
 
 
 class Job(_Strict):
@@ -123,20 +142,49 @@ def load_job(path: str | Path) -> tuple[Job, Path]:
 
 
 def build_stock(spec: StockSpec, base: Path) -> Stock | None:
-    """The stock of the job; ``None`` for ``infer`` (the caller infers it from the toolpath)."""
+    """The stock of the job; ``None`` for ``infer`` (the caller infers it from the toolpath).
+
+    A ``file`` stock must exist and be STEP/BREP; its solid is read and checked by the engine."""
     if spec.kind == "box":
         return BoxStock(spec.min, spec.max)  # type: ignore[arg-type]
     if spec.kind == "cylinder":
         return CylinderStock(spec.base_center, spec.radius, spec.height)  # type: ignore[arg-type]
     if spec.kind == "file":
-        return SolidStock(base / spec.path)  # type: ignore[operator]
+        from fusioncut.io.stock import solid_stock
+
+        return solid_stock(base / spec.path)  # type: ignore[operator]
     return None
 
 
 def job_hash(job: Job, base: Path) -> str:
-    h = hashlib.sha256(job.model_dump_json().encode())
-    for p in [*job.toolpaths, *([job.tool_library] if job.tool_library else [])]:
+    """SHA-256 (16 hex digits) of the normalised job without its run options, and of the bytes of
+    every input file (toolpaths, tool library, stock solid). Equal hashes mean equal results."""
+    h = hashlib.sha256(job.model_dump_json(exclude={"options": set(RUN_OPTIONS)}).encode())
+    files = [*job.toolpaths, *([job.tool_library] if job.tool_library else [])]
+    if job.stock.kind == "file" and job.stock.path:
+        files.append(job.stock.path)
+    for p in files:
         f = base / p
         if f.is_file():
             h.update(f.read_bytes())
     return h.hexdigest()[:16]
+
+
+def read_toolpath(path: Path, tools: dict[int, MillingTool] | None = None, strict: bool = False) -> Toolpath:
+    """Read a toolpath file by its suffix: APT/CLSF (``.apt .cls .clsf .aptsource``), Fusion JSON
+    post (``.json``) or, for anything else, RS274/NGC G-code. Moves in mm, mm/min.
+
+    ``tools`` (G-code only) replaces the tools the program's comments describe and gives cutter
+    compensation its radii; APT and Fusion JSON state their own cutters."""
+    suffix = path.suffix.lower()
+    if suffix in (".apt", ".cls", ".clsf", ".aptsource"):
+        from fusioncut.io.apt import read_apt
+
+        return read_apt(path)
+    if suffix == ".json":
+        from fusioncut.io.fusion_json import read_fusion_json
+
+        return read_fusion_json(path)
+    from fusioncut.io.gcode import read_gcode
+
+    return read_gcode(path, tools=tools or None, strict=strict)

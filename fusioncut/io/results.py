@@ -49,7 +49,7 @@ removed_volume_mm3       float64   mm³      material removed by the segment
 mrr_mm3_min              float64   mm³/min  removed volume / (length / feed); NaN for rapids, failed CLs,
                                             unknown feed or zero length
 sweep_method             string    -        how the swept volume was built
-time_ms                  float64   ms       engine compute time of the CL (sum of its timings)
+time_ms                  float64   ms       engine compute time of the CL (its "total" timing)  
 ======================== ========= ======== ================================================================
 
 ``slices`` table (one row per engaged arc; slices without contact have no rows)
@@ -300,7 +300,7 @@ def cl_row(em: EngagementMap, length_mm: float | None = None) -> dict[str, Any]:
         "removed_volume_mm3": removed,
         "mrr_mm3_min": mrr,
         "sweep_method": em.sweep_method,
-        "time_ms": float(sum(t for _, t in em.timings_ms)),
+        "time_ms": float(dict(em.timings_ms).get("total", sum(t for _, t in em.timings_ms))),
     }
 
 
@@ -401,6 +401,10 @@ class ResultWriter:
 
     ``tools`` optionally maps tool labels to JSON-serialisable descriptions for the metadata; labels
     seen in the engagement maps are added with an empty description.
+
+    ``keep_below`` resumes a run: the rows of CLs ``< keep_below`` already in the directory are kept
+    and every later row is dropped, so CLs recomputed after a checkpoint are never listed twice
+    (``written`` then counts the kept CLs; the caller checks they are the ones it expects).
     """
 
     def __init__(
@@ -412,6 +416,7 @@ class ResultWriter:
         expected_cls: Mapping[str, int] | None = None,
         batch_size: int = 64,
         max_io_fraction: float | None = 0.1,
+        keep_below: int = 0,
     ) -> None:
         if batch_size < 1:
             raise ValueError(f"batch_size must be >= 1, got {batch_size}")
@@ -433,9 +438,12 @@ class ResultWriter:
         self._last_flush_duration = 0.0
         self._closed = False
         self._csv_sizes: dict[str, int] = {}  # bytes of each CSV as of the last complete flush
-        # Replace whatever an earlier run left with empty tables at once, so the directory never
-        # mixes this job's CLs with another's and is loadable before the first flush.
-        self._write_files(new_cl=[], new_slices=[], fresh=True)
+        # Replace whatever an earlier run left at once (by empty tables, or by the rows a resumed run
+        # keeps), so the directory never mixes this job's CLs with another's and is loadable before
+        # the first flush.
+        kept_cl, kept_slices = _rows_below(self.directory, keep_below) if keep_below > 0 else ([], [])
+        self._write_files(new_cl=kept_cl, new_slices=kept_slices, fresh=True)
+        self._written = len(kept_cl)
 
     # context manager: always flush on the way out, also on errors and Ctrl-C
     def __enter__(self) -> ResultWriter:
@@ -558,6 +566,18 @@ class ResultWriter:
 
         _atomic_write(path, write)
         return path.stat().st_size
+
+
+def _rows_below(directory: Path, keep_below: int) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The ``cl`` and ``slices`` rows of CLs ``< keep_below`` in an existing results directory
+    (none when it holds no results), in the order they were written."""
+    try:
+        old = load_results(directory)
+    except InputError:
+        return [], []
+    cl = old.cl[old.cl["cl"] < keep_below]
+    slices = old.slices[old.slices["cl"] < keep_below]
+    return cl.to_dict("records"), slices.to_dict("records")
 
 
 def _to_arrow(df: pd.DataFrame, schema: pa.Schema) -> pa.Table:

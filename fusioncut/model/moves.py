@@ -46,6 +46,18 @@ class Move:
         return False
 
     @property
+    def kind(self) -> str:
+        """What sort of motion this is: ``rapid``, ``linear``, ``arc`` or ``helix``."""
+        raise NotImplementedError
+
+    @property
+    def bounds(self) -> tuple[Point, Point]:
+        """Exact axis-aligned bounds (min corner, max corner) of the tool-tip path, mm."""
+        lo = (min(self.start[0], self.end[0]), min(self.start[1], self.end[1]), min(self.start[2], self.end[2]))
+        hi = (max(self.start[0], self.end[0]), max(self.start[1], self.end[1]), max(self.start[2], self.end[2]))
+        return lo, hi
+
+    @property
     def length(self) -> float:
         raise NotImplementedError
 
@@ -84,6 +96,10 @@ class LinearMove(Move):
     @property
     def is_rapid(self) -> bool:
         return self.rapid
+
+    @property
+    def kind(self) -> str:
+        return "rapid" if self.rapid else "linear"
 
     @property
     def length(self) -> float:
@@ -156,6 +172,29 @@ class ArcMove(Move):
     @property
     def is_helix(self) -> bool:
         return abs(self.rise) > 1e-9
+
+    @property
+    def kind(self) -> str:
+        return "helix" if self.is_helix else "arc"
+
+    @property
+    def bounds(self) -> tuple[Point, Point]:
+        """Exact axis-aligned bounds of the arc or helix, mm: its end points plus the points where it
+        crosses a multiple of 90 degrees in its plane (the in-plane extremes)."""
+        a, b, _ = self.plane.axes
+        a0 = math.atan2(self.start[b] - self.center[b], self.start[a] - self.center[a])
+        sweep = self.sweep
+        pts = [self.start, self.end]
+        lo_k = math.ceil(min(a0, a0 + sweep) / (math.pi / 2))
+        hi_k = math.floor(max(a0, a0 + sweep) / (math.pi / 2))
+        # extra turns revisit the same four directions: eight crossings cover every extreme
+        for k in range(lo_k, min(hi_k, lo_k + 8) + 1):
+            t = (k * math.pi / 2 - a0) / sweep
+            if 0.0 <= t <= 1.0:
+                pts.append(self.point_at(t))
+        lo = (min(p[0] for p in pts), min(p[1] for p in pts), min(p[2] for p in pts))
+        hi = (max(p[0] for p in pts), max(p[1] for p in pts), max(p[2] for p in pts))
+        return lo, hi
 
     @property
     def length(self) -> float:

@@ -425,3 +425,140 @@ __all__ = [
     "PLOTS", "engaged_span_grid", "new_figure", "plot_engagement_map", "plot_heatmap", "plot_polar",
     "plot_program", "save_figure",
 ]
+
+
+# --------------------------------------------------------------------------------------------------
+# cutting forces and feed advice along the program (tables of fusioncut.analysis)
+
+
+def _table_of(data: object) -> pd.DataFrame:
+    """The per-CL DataFrame of a forces table, a feed advice table, or an object holding one (``.table``)."""
+    table = getattr(data, "table", data)
+    if not isinstance(table, pd.DataFrame):
+        raise TypeError(f"expected a DataFrame or an object with a .table DataFrame, got {type(data).__name__}")
+    return table.sort_values("cl", kind="stable")
+
+
+def plot_forces(
+    table: object,
+    *,
+    frame: str = "feed",
+    out: str | os.PathLike[str] | None = None,
+    figsize: tuple[float, float] = (11.0, 6.5),
+    dpi: float = 100.0,
+) -> Figure:
+    """Cutting forces along the program vs CL index, from a forces table
+    (:func:`fusioncut.analysis.forces.forces_table`, or ``forces.csv`` written by ``fusioncut forces``).
+
+    Top: peak (solid) and mean (dashed) resultant ``|F|`` and the peak ``|Fx|, |Fy|, |Fz|`` (N) in the
+    ``feed`` frame (x along the feed) or the ``machine`` frame. Bottom: peak and mean spindle cutting
+    power (W). CLs whose forces are unknown (rapids, failed CLs) are gaps; failed CLs are marked.
+    """
+    if frame not in ("feed", "machine"):
+        raise ValueError(f"frame must be 'feed' or 'machine', got {frame!r}")
+    t = _table_of(table)
+    suffix = "" if frame == "feed" else "_machine"
+    x = t["cl"].to_numpy()
+    fig = new_figure(figsize, dpi)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+    ax1.plot(x, t["resultant_peak_N"], color="black", lw=1.4, drawstyle="steps-mid", label="|F| peak", gid="resultant_peak")
+    ax1.plot(x, t["resultant_mean_N"], color="black", lw=1.0, ls="--", drawstyle="steps-mid", label="|F| mean",
+             gid="resultant_mean")
+    for axis, color in zip("xyz", ("#1b9e77", "#d95f02", "#7570b3")):
+        col = f"f{axis}{suffix}_peak_N"
+        ax1.plot(x, t[col], color=color, lw=0.9, drawstyle="steps-mid", label=f"|F{axis}| peak", gid=col)
+    ax2.plot(x, t["power_peak_W"], color=ARC_COLOR, lw=1.2, drawstyle="steps-mid", label="peak", gid="power_peak")
+    ax2.plot(x, t["power_mean_W"], color=ARC_COLOR, lw=1.0, ls="--", drawstyle="steps-mid", label="mean",
+             gid="power_mean")
+    failed = t[t["status"].astype("string") == "failed"]
+    if len(failed):
+        ax1.plot(failed["cl"], np.zeros(len(failed)), "x", color=EXIT_COLOR, ms=7, mew=1.5, label="failed CL (unknown)")
+    if not np.isfinite(t["resultant_peak_N"].to_numpy(dtype=float)).any():
+        _no_data(ax1, "no forces known (no engaged CL with a feed and a spindle speed)")
+    ax1.set_ylabel("force on the tool (N)")
+    ax1.set_ylim(bottom=0)
+    ax2.set_ylabel("spindle cutting power (W)")
+    ax2.set_ylim(bottom=0)
+    ax2.set_xlabel("CL index")
+    for ax in (ax1, ax2):
+        ax.grid(True, color="0.88", lw=0.6)
+        ax.set_axisbelow(True)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    where = "feed frame: x along the feed, z up the tool" if frame == "feed" else "machine frame"
+    fig.suptitle(f"Cutting forces along the program ({len(t)} CLs; {where})", fontsize=11)
+    return _finish(fig, out)
+
+
+_QUANTITY_LABELS = {
+    "force": ("force_peak", "N", "peak resultant force |F| (N)"),
+    "chip": ("chip_peak", "mm", "peak chip thickness (mm)"),
+    "power": ("power_peak", "W", "peak cutting power (W)"),
+    "mrr": ("mrr", "mm3_min", "material removal rate (mm³/min)"),
+}
+
+
+def plot_feed_advice(
+    advice: object,
+    *,
+    quantity: str | None = None,
+    limit: float | None = None,
+    out: str | os.PathLike[str] | None = None,
+    figsize: tuple[float, float] = (11.0, 6.5),
+    dpi: float = 100.0,
+) -> Figure:
+    """Programmed vs advised feed along the program vs CL index, from a
+    :class:`~fusioncut.analysis.feed.FeedAdvice` (or its ``table``).
+
+    Top: programmed (grey) and advised (blue) feed (mm/min); CLs whose advice comes from a limit
+    that cannot be met (note ``unreachable``) are marked. Bottom: ``quantity`` (``force``, ``chip``,
+    ``power`` or ``mrr``; default: the advice's first limit) at the programmed and at the advised
+    feed, with the limit as a red line (``limit`` defaults to the advice's). Rapids are gaps.
+    """
+    t = _table_of(advice)
+    lim_obj = getattr(advice, "limit", None)
+    if quantity is None:
+        active = getattr(lim_obj, "active", ()) or ("force",)
+        quantity = active[0]
+    if quantity not in _QUANTITY_LABELS:
+        raise ValueError(f"quantity must be one of {', '.join(_QUANTITY_LABELS)}, got {quantity!r}")
+    if limit is None and lim_obj is not None:
+        limit = lim_obj.value(quantity)
+    stem, unit, label = _QUANTITY_LABELS[quantity]
+    x = t["cl"].to_numpy()
+    fig = new_figure(figsize, dpi)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+    ax1.plot(x, t["programmed_feed_mm_min"], color="0.45", lw=1.6, drawstyle="steps-mid", label="programmed",
+             gid="programmed_feed")
+    ax1.plot(x, t["advised_feed_mm_min"], color=ARC_COLOR, lw=1.3, drawstyle="steps-mid", label="advised",
+             gid="advised_feed")
+    bad = t[t["note"].astype("string").str.contains("unreachable", regex=False).fillna(False)]
+    if len(bad):
+        ax1.plot(bad["cl"], bad["advised_feed_mm_min"], "v", color=EXIT_COLOR, ms=5, label="limit unreachable",
+                 gid="unreachable")
+    ax2.plot(x, t[f"{stem}_programmed_{unit}"], color="0.45", lw=1.2, drawstyle="steps-mid", label="at programmed feed",
+             gid=f"{quantity}_programmed")
+    ax2.plot(x, t[f"{stem}_advised_{unit}"], color=ARC_COLOR, lw=1.2, drawstyle="steps-mid", label="at advised feed",
+             gid=f"{quantity}_advised")
+    if limit is not None:
+        ax2.axhline(limit, color=EXIT_COLOR, lw=1.2, ls="--", label=f"limit {limit:g}", gid="limit")
+    ax1.set_ylabel("feed (mm/min)")
+    ax1.set_ylim(bottom=0)
+    ax2.set_ylabel(label)
+    ax2.set_ylim(bottom=0)
+    ax2.set_xlabel("CL index")
+    for ax in (ax1, ax2):
+        ax.grid(True, color="0.88", lw=0.6)
+        ax.set_axisbelow(True)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    feeds = t[["length_mm", "programmed_feed_mm_min", "advised_feed_mm_min"]].to_numpy(dtype=float)
+    ok = np.isfinite(feeds).all(axis=1) & (feeds[:, 1] > 0) & (feeds[:, 2] > 0)
+    t_prog = float(np.sum(feeds[ok, 0] / feeds[ok, 1])) * 60.0
+    t_adv = float(np.sum(feeds[ok, 0] / feeds[ok, 2])) * 60.0
+    fig.suptitle(f"Feed advice along the program ({len(t)} CLs) — feed time {t_prog:.1f} s programmed, "
+                 f"{t_adv:.1f} s advised", fontsize=11)
+    return _finish(fig, out)
+
+
+PLOTS_ANALYSIS = {"forces": plot_forces, "feed": plot_feed_advice}
+
+__all__ += ["PLOTS_ANALYSIS", "plot_feed_advice", "plot_forces"]

@@ -220,3 +220,72 @@ def test_cli_missing_results(tmp_path, cli_app):
 
 def test_plot_registry_matches_cli_kinds():
     assert set(plots.PLOTS) == {k.value for k in plot_cli.PlotKind}
+
+
+# --------------------------------------------------------------------------------------------------
+# forces and feed advice along the program (tables of fusioncut.analysis)
+
+
+@pytest.fixture(scope="module")
+def force_maps():
+    from fusioncut.model import FlatEndMill
+
+    tool = FlatEndMill(diameter=8.0, flute_length=20.0, flutes=3, helix_angle=30.0)
+    ems = [em(0, None, op="rough", status=CLStatus.RAPID)]
+    ems += [em(i, [(0.0, 60.0 + 20 * i)], op="rough") for i in range(1, 6)]
+    ems += [em(6, None, op="rough", status=CLStatus.FAILED)]
+    ems += [em(i, [(0.0, 180.0)], op="finish") for i in range(7, 10)]
+    return tool, ems
+
+
+def _line(ax, gid):
+    (ln,) = [ln for ln in ax.get_lines() if ln.get_gid() == gid]
+    return ln
+
+
+def test_plot_forces_draws_the_table(tmp_path, force_maps):
+    from fusioncut.analysis.forces import forces_table
+    from fusioncut.analysis.materials import AL7075_T6_CARBIDE
+
+    tool, ems = force_maps
+    table = forces_table(ems, tool, AL7075_T6_CARBIDE, 8000.0, dz=0.5)
+    out = tmp_path / "f.png"
+    fig = plots.plot_forces(table, out=out, figsize=(6.4, 4.0), dpi=100)
+    assert mpimg.imread(out).shape[:2] == (400, 640)
+    ax1, ax2 = fig.axes[:2]
+    np.testing.assert_array_equal(_line(ax1, "resultant_peak").get_ydata(), table["resultant_peak_N"])
+    np.testing.assert_array_equal(_line(ax1, "fy_peak_N").get_ydata(), table["fy_peak_N"])
+    np.testing.assert_array_equal(_line(ax2, "power_mean").get_ydata(), table["power_mean_W"])
+    assert np.isnan(_line(ax1, "resultant_peak").get_ydata()[[0, 6]]).all()  # rapid, failed: unknown
+    assert "(N)" in ax1.get_ylabel() and "(W)" in ax2.get_ylabel()
+    # the machine frame uses the machine columns
+    fig = plots.plot_forces(table, frame="machine")
+    np.testing.assert_array_equal(_line(fig.axes[0], "fx_machine_peak_N").get_ydata(), table["fx_machine_peak_N"])
+    with pytest.raises(ValueError, match="frame"):
+        plots.plot_forces(table, frame="tool")
+
+
+def test_plot_feed_advice_draws_feeds_and_the_limit(tmp_path, force_maps):
+    from fusioncut.analysis.feed import FeedLimit, advise_feeds
+    from fusioncut.analysis.materials import AL7075_T6_CARBIDE
+
+    tool, ems = force_maps
+    advice = advise_feeds(ems, tool, AL7075_T6_CARBIDE, FeedLimit(max_force=120.0, max_feed=900.0), rpm=8000.0,
+                          dz=0.5)
+    out = tmp_path / "a.svg"
+    fig = plots.plot_feed_advice(advice, out=out, figsize=(5, 4), dpi=72)
+    ET.parse(out)
+    ax1, ax2 = fig.axes[:2]
+    t = advice.table
+    np.testing.assert_array_equal(_line(ax1, "advised_feed").get_ydata(), t["advised_feed_mm_min"])
+    np.testing.assert_array_equal(_line(ax1, "programmed_feed").get_ydata(), t["programmed_feed_mm_min"])
+    np.testing.assert_array_equal(_line(ax2, "force_advised").get_ydata(), t["force_peak_advised_N"])
+    assert list(_line(ax2, "limit").get_ydata()) == [120.0, 120.0]
+    assert "feed time" in fig.get_suptitle()
+    # another quantity, from the bare table with an explicit limit
+    fig = plots.plot_feed_advice(t, quantity="chip", limit=0.05)
+    assert list(_line(fig.axes[1], "limit").get_ydata()) == [0.05, 0.05]
+    with pytest.raises(ValueError, match="quantity"):
+        plots.plot_feed_advice(t, quantity="torque")
+    with pytest.raises(TypeError):
+        plots.plot_feed_advice([1, 2, 3])

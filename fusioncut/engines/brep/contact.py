@@ -259,7 +259,10 @@ def slice_intervals(contacts: list[ContactFace], tip: tuple[float, float, float]
                     v = v2
                     break
             else:
-                raise RuntimeError(f"odd number ({len(us)}) of boundary crossings on a contact face at z={z:.4f}")
+                # the scan line meets the boundary where the pcurves are tangent to it or nearly
+                # so: intersect the face with the plane instead (slower, as exact)
+                arcs.extend(_section_arcs(face, tip, z))
+                continue
         for k in range(0, len(us), 2):
             ua, ub = us[k], us[k + 1]
             if ub - ua < 1e-12:
@@ -274,6 +277,33 @@ def slice_intervals(contacts: list[ContactFace], tip: tuple[float, float, float]
             start = ta if ccw else ta - span
             arcs.append((start % TWO_PI, span))
     return merge_arcs(arcs)
+
+
+def _section_arcs(face: TopoDS_Face, tip: tuple[float, float, float], z: float) -> list[tuple[float, float]]:
+    """Arcs where the plane at height ``z`` above the tip cuts ``face`` (BRepAlgoAPI_Section)."""
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Section
+    from OCP.gp import gp_Dir, gp_Pln, gp_Pnt
+
+    section = BRepAlgoAPI_Section(face, gp_Pln(gp_Pnt(tip[0], tip[1], tip[2] + z), gp_Dir(0, 0, 1)))
+    section.Build()
+    if not section.IsDone():
+        raise RuntimeError(f"could not slice a contact face at z={z:.4f}")
+    out = []
+    exp = TopExp_Explorer(section.Shape(), TopAbs_EDGE)
+    while exp.More():
+        curve = BRepAdaptor_Curve(TopoDS.Edge(exp.Current()))
+        exp.Next()
+        f, l = curve.FirstParameter(), curve.LastParameter()
+        angles = [math.atan2(p.Y() - tip[1], p.X() - tip[0]) for p in (curve.Value(t) for t in (f, 0.5 * (f + l), l))]
+        a0, am, a1 = angles
+        span = (a1 - a0) % TWO_PI
+        if span < 1e-12:
+            span = TWO_PI if abs(l - f) > 1e-9 else 0.0  # a closed circle, or a point
+        ccw = ((am - a0) % TWO_PI) <= span + 1e-12
+        if span > 0:
+            out.append((a0 % TWO_PI, span) if ccw else (a1 % TWO_PI, TWO_PI - span if span < TWO_PI else span))
+    return out
 
 
 def merge_arcs(arcs: list[tuple[float, float]], gap: float = 1e-9) -> list[tuple[float, float]]:

@@ -12,17 +12,22 @@ machine frame (Z up) throughout; angles in degrees unless a name ends in ``_rad`
 """
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
+from OCP.BOPAlgo import BOPAlgo_GlueShift
 from OCP.BRep import BRep_Tool
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
 from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
+from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepLib import BRepLib_ToolTriangulatedShape
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
+from OCP.ShapeFix import ShapeFix_Shape
 from OCP.TopAbs import TopAbs_REVERSED
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
@@ -30,15 +35,19 @@ from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.contact import ContactFace, find_contact_faces
 from fusioncut.engines.brep.engine import BRepEngine
-from fusioncut.engines.brep.occ import area, bounding_box, boxes_overlap, faces, volume, write_brep, write_step, write_stl
+from fusioncut.engines.brep.occ import (
+    bounding_box, boxes_overlap, faces, shape_list, solids, unify, volume, write_brep, write_step, write_stl,
+)
 from fusioncut.engines.brep.sweep import placed_tool
 from fusioncut.engines.segments import cl_segments
-from fusioncut.errors import GeometryError, InputError
+from fusioncut.errors import FusionCutError, GeometryError, InputError
 from fusioncut.model.angles import machine_from_immersion
-from fusioncut.model.engagement import CLStatus, EngagementMap, SliceEngagement
+from fusioncut.model.engagement import EngagementMap, SliceEngagement
 from fusioncut.model.moves import Move, Toolpath
 from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool
+
+log = logging.getLogger("fusioncut.export")
 
 # the angular deflection (rad) of meshes: with a linear deflection alone, small fillets and the tool's
 # corner radius would get a single facet
@@ -47,8 +56,9 @@ DEFAULT_ANGLE = 0.3
 IPW_SUFFIXES = {".step": "STEP", ".stp": "STEP", ".stl": "STL", ".brep": "BREP"}
 
 
-class Mesh(NamedTuple):
-    """A triangle mesh in mm. Unpacks as ``(vertices, triangles)``.
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A triangle mesh in mm. Unpacks as ``vertices, triangles = mesh``.
 
     ``vertices`` (n, 3) float64; ``triangles`` (m, 3) int64 indices, counter-clockwise seen from
     outside the solid (right-hand normal points out); ``normals`` (n, 3) unit surface normals at the
@@ -58,6 +68,9 @@ class Mesh(NamedTuple):
     vertices: np.ndarray
     triangles: np.ndarray
     normals: np.ndarray | None = None
+
+    def __iter__(self):
+        return iter((self.vertices, self.triangles))
 
     @property
     def is_empty(self) -> bool:
@@ -88,19 +101,19 @@ def _empty_mesh() -> Mesh:
 # -- tessellation -------------------------------------------------------------------------------
 
 
-def _meshed_copy(shape: TopoDS_Shape, deflection: float, angle: float) -> TopoDS_Shape:
-    """A copy of ``shape`` carrying a fresh triangulation.
+def _meshed_copy(shape: TopoDS_Shape, deflection: float, angle: float) -> BRepBuilderAPI_Copy:
+    """A copy of ``shape`` (``.Shape()``) carrying a fresh mesh.
 
     Meshing stores triangulations in the faces; on a copy the caller's shape (the engine's IPW, the
     cached tool solid) is left as it was, and an older, coarser mesh is never reused.
     """
     if not deflection > 0:
         raise ValueError(f"mesh deflection must be > 0 mm, got {deflection}")
-    copy = BRepBuilderAPI_Copy(shape, True, False).Shape()
-    mesher = BRepMesh_IncrementalMesh(copy, float(deflection), False, float(angle), True)
+    copier = BRepBuilderAPI_Copy(shape, True, False)
+    mesher = BRepMesh_IncrementalMesh(copier.Shape(), float(deflection), False, float(angle), True)
     if not mesher.IsDone():
         raise GeometryError(f"meshing failed (deflection {deflection} mm)")
-    return copy
+    return copier
 
 
 def _face_mesh(face: TopoDS_Face) -> Mesh:
@@ -119,7 +132,9 @@ def _face_mesh(face: TopoDS_Face) -> Mesh:
     # normals from the surface itself (at each node's (u, v)): smooth shading of curved faces with no
     # faceting, and sharp edges between faces
     normals = None
-    if tri.HasUVNodes() and BRepLib_ToolTriangulatedShape.ComputeNormals_s(face, tri) is None and tri.HasNormals():
+    if tri.HasUVNodes():
+        BRepLib_ToolTriangulatedShape.ComputeNormals_s(face, tri)  # on the copy's own triangulation
+    if tri.HasNormals():
         normals = np.empty((n, 3))
         for i in range(n):
             d = tri.Normal(i + 1).Transformed(trsf)
@@ -158,6 +173,25 @@ def _merge_vertices(mesh: Mesh, tol: float) -> Mesh:
     return Mesh(mesh.vertices[first], tris[keep], None)
 
 
+def _snap(parts: list[Mesh], tol: float = 1e-6) -> list[Mesh]:
+    """Give copies of a node that several faces' meshes share one position (each keeps its normal).
+
+    A face's boundary nodes agree with its neighbour's only to rounding; drawn as they are, the
+    seams show hairline cracks.
+    """
+    if not parts or all(p.is_empty for p in parts):
+        return parts
+    verts = np.concatenate([p.vertices for p in parts])
+    _, first, inverse = np.unique(np.round(verts / tol).astype(np.int64), axis=0, return_index=True,
+                                  return_inverse=True)
+    snapped = verts[first][inverse.reshape(-1)]
+    out, k = [], 0
+    for p in parts:
+        out.append(replace(p, vertices=snapped[k:k + len(p.vertices)]))
+        k += len(p.vertices)
+    return out
+
+
 def tessellate(shape: TopoDS_Shape, deflection: float, angle: float = DEFAULT_ANGLE, *,
                weld: bool = True) -> Mesh:
     """Triangle mesh of ``shape`` whose facets lie within ``deflection`` mm of the exact surface.
@@ -167,16 +201,103 @@ def tessellate(shape: TopoDS_Shape, deflection: float, angle: float = DEFAULT_AN
     without it each face keeps its own vertices and exact surface normals (for shading).
     The enclosed volume differs from the exact one by at most ``deflection`` × surface area.
     """
-    meshed = _meshed_copy(shape, deflection, angle)
-    mesh = _concatenate([_face_mesh(f) for f in faces(meshed)])
-    return _merge_vertices(mesh, tol=1e-6) if weld else mesh
+    meshed = _meshed_copy(shape, deflection, angle).Shape()
+    parts = [_face_mesh(f) for f in faces(meshed)]
+    return _merge_vertices(_concatenate(parts), tol=1e-6) if weld else _concatenate(_snap(parts))
+
+
+# -- the workpiece as one solid ----------------------------------------------------------------------
+
+
+def _fused(parts: list[TopoDS_Shape], glue: bool) -> TopoDS_Shape:
+    op = BRepAlgoAPI_Fuse()
+    op.SetArguments(shape_list(parts[:1]))
+    op.SetTools(shape_list(parts[1:]))
+    if glue:
+        op.SetGlue(BOPAlgo_GlueShift)  # the cells only share (parts of) faces: no face crosses another
+    op.Build()
+    if not op.IsDone():
+        raise RuntimeError("fuse failed")
+    return op.Shape()
+
+
+def whole_ipw(ipw: TopoDS_Shape | BRepEngine) -> TopoDS_Shape:
+    """The IPW as one shape with no internal walls (an engine, or its ``ipw``).
+
+    The engine may keep the workpiece as cells (columns) side by side; their common walls are inside
+    the material, and written as they are they would show in a view and make an STL non-manifold.
+    Here the cells are fused, repaired where the fuse leaves an invalid shape (it does, where a
+    channel crosses a wall: measured on the demo), and faces on the same surface merged; every
+    result is checked (valid B-Rep, same volume). Separate pieces of material stay separate solids.
+    Should no result pass, the cells are returned as they are with a warning: the volume is right,
+    only the walls remain.
+    """
+    shape = ipw.ipw if isinstance(ipw, BRepEngine) else ipw
+    if shape is None or shape.IsNull():
+        raise GeometryError("there is no workpiece")
+    if len(solids(shape)) <= 1:
+        return shape
+    # work on a copy: a fuse may widen the tolerances of its arguments' edges and the repair below
+    # edits shapes in place, and the cells are the engine's live state (they share those edges)
+    parts = solids(BRepBuilderAPI_Copy(shape, True, False).Shape())
+    expected = sum(volume(p) for p in parts)
+
+    def good(candidate: TopoDS_Shape) -> bool:
+        # the volumes agree to GProp's integration accuracy (about 1e-9 relative), not to rounding
+        return (BRepCheck_Analyzer(candidate).IsValid()
+                and abs(volume(candidate) - expected) <= 1e-6 * max(1.0, expected))
+
+    for glue in (True, False):
+        try:
+            fused = _fused(parts, glue)
+            if not BRepCheck_Analyzer(fused).IsValid():
+                fix = ShapeFix_Shape(fused)
+                fix.Perform()
+                fused = fix.Shape()
+            if not good(fused):
+                continue
+            merged = unify(fused)
+            return merged if good(merged) else fused
+        except Exception as exc:  # noqa: BLE001 - OCP raises its own types; the next way is tried
+            log.debug("fusing the workpiece cells (glue=%s) failed: %s", glue, exc)
+    log.warning("could not fuse the %d workpiece cells into one solid; they are kept side by side", len(parts))
+    return shape
 
 
 # -- files --------------------------------------------------------------------------------------
 
 
-def export_ipw(ipw: TopoDS_Shape, path: str | Path, deflection: float = 0.01, angle: float = DEFAULT_ANGLE) -> str:
-    """Write the IPW to ``path``; the suffix picks the format. Returns the format's name.
+@contextmanager
+def _kernel_errors(what: str, cl_index: int | None = None):
+    """Report a failure of the kernel (OCP raises its own exception types) as a :class:`GeometryError`."""
+    try:
+        yield
+    except (FusionCutError, ValueError, OSError):
+        raise
+    except Exception as exc:  # noqa: BLE001 - OCP's Standard_Failure and kin have no common Python base
+        raise GeometryError(f"{what} failed in the geometry kernel: {exc or type(exc).__name__}", cl_index) from exc
+
+
+@contextmanager
+def _quiet_kernel():
+    """Keep OCCT's own chatter (the STEP writer's transfer statistics) off the user's terminal."""
+    from OCP.Message import Message
+
+    messenger = Message.DefaultMessenger_s()
+    printers = list(messenger.Printers())
+    for p in printers:
+        messenger.RemovePrinter(p)
+    try:
+        yield
+    finally:
+        for p in printers:
+            messenger.AddPrinter(p)
+
+
+def export_ipw(ipw: TopoDS_Shape | BRepEngine, path: str | Path, deflection: float = 0.01,
+               angle: float = DEFAULT_ANGLE) -> str:
+    """Write the IPW (an engine, or its ``ipw``) to ``path``; the suffix picks the format. Returns the
+    format's name. The cells of the engine's IPW are joined first (:func:`whole_ipw`).
 
     ``.step`` / ``.stp``: AP214 in mm, exact B-Rep. ``.brep``: OCCT's text format, exact to the bit.
     ``.stl``: binary, facets within ``deflection`` mm (and ``angle`` rad) of the exact surface.
@@ -185,19 +306,19 @@ def export_ipw(ipw: TopoDS_Shape, path: str | Path, deflection: float = 0.01, an
     kind = IPW_SUFFIXES.get(path.suffix.lower())
     if kind is None:
         raise InputError(f"unsupported workpiece format {path.suffix!r} (use .step, .stp, .stl or .brep)", path)
-    if ipw is None or ipw.IsNull():
-        raise GeometryError("there is no workpiece to export")
     if not path.parent.is_dir():
         raise InputError("the output folder does not exist", path.parent)
-    if kind == "STEP":
-        write_step(ipw, str(path))
-    elif kind == "BREP":
-        write_brep(ipw, str(path))
-    else:
-        if not deflection > 0:
-            raise ValueError(f"STL deflection must be > 0 mm, got {deflection}")
-        # mesh a copy: the engine's IPW keeps no triangulation it did not ask for
-        write_stl(BRepBuilderAPI_Copy(ipw, True, False).Shape(), str(path), deflection, angle)
+    if kind == "STL" and not deflection > 0:
+        raise ValueError(f"STL deflection must be > 0 mm, got {deflection}")
+    with _kernel_errors(f"writing {path.name}"), _quiet_kernel():
+        ipw = whole_ipw(ipw)
+        if kind == "STEP":
+            write_step(ipw, str(path))
+        elif kind == "BREP":
+            write_brep(ipw, str(path))
+        else:
+            # mesh a copy: the engine's IPW keeps no triangulation it did not ask for
+            write_stl(BRepBuilderAPI_Copy(ipw, True, False).Shape(), str(path), deflection, angle)
     return kind
 
 
@@ -215,6 +336,16 @@ class Replay:
     cl_count: int  # CL segments in the whole toolpath
 
 
+def check_cl_index(toolpath: Toolpath, cl_index: int, options: EngineOptions | None = None) -> list[Move]:
+    """The CL segments of ``toolpath`` under ``options``; an :class:`InputError` unless CL ``cl_index`` is one."""
+    options = options or EngineOptions()
+    segments = cl_segments(toolpath.moves, options.max_segment_length, options.chord_tolerance)
+    if not 0 <= cl_index < len(segments):
+        raise InputError(f"CL {cl_index} is out of range: the toolpath has {len(segments)} CL segments "
+                         f"(0..{len(segments) - 1})", toolpath.source)
+    return segments
+
+
 def replay(toolpath: Toolpath, stock: Stock | TopoDS_Shape, cl_index: int, options: EngineOptions | None = None,
            default_tool: MillingTool | None = None,
            on_cl: Callable[[EngagementMap, int], None] | None = None) -> Replay:
@@ -224,10 +355,7 @@ def replay(toolpath: Toolpath, stock: Stock | TopoDS_Shape, cl_index: int, optio
     :func:`fusioncut.engines.segments.cl_segments`). ``on_cl(map, cl_index + 1)`` reports progress.
     """
     options = options or EngineOptions()
-    segments = cl_segments(toolpath.moves, options.max_segment_length, options.chord_tolerance)
-    if not 0 <= cl_index < len(segments):
-        raise InputError(f"CL {cl_index} is out of range: the toolpath has {len(segments)} CL segments "
-                         f"(0..{len(segments) - 1})", toolpath.source)
+    segments = check_cl_index(toolpath, cl_index, options)
     engine = BRepEngine(options)
     engine.start(stock)
     last = None
@@ -244,16 +372,17 @@ def replay(toolpath: Toolpath, stock: Stock | TopoDS_Shape, cl_index: int, optio
     return Replay(engine, last, move, tool, len(segments))
 
 
-def contact_faces_at(ipw: TopoDS_Shape, tool: MillingTool, tip: tuple[float, float, float],
+def contact_faces_at(ipw: TopoDS_Shape | BRepEngine, tool: MillingTool, tip: tuple[float, float, float],
                      tol: float = 1e-6) -> list[ContactFace]:
-    """The faces of ``ipw`` lying on the surfaces of ``tool`` with its tip at ``tip`` (mm).
+    """The faces of the workpiece (an engine, or its ``ipw``) lying on the surfaces of ``tool`` with
+    its tip at ``tip`` (mm), found among the faces near the tool.
 
-    Recomputed from the IPW, not kept from the engine's step: the same faces as the step's for a CL
-    that removed material, and also any face an earlier CL left on the very same tool surface (it
-    touches the tool all the same).
+    Recomputed from the IPW (its cells joined, :func:`whole_ipw`), not kept from the engine's step:
+    the same surface and area as the step's for a CL that removed material, and also any face an
+    earlier CL left on the very same tool surface (it touches the tool all the same).
     """
     box = bounding_box(placed_tool(tool, tip))
-    near = [f for f in faces(ipw) if boxes_overlap(bounding_box(f), box, gap=tol)]
+    near = [f for f in faces(whole_ipw(ipw)) if boxes_overlap(bounding_box(f), box, gap=tol)]
     return find_contact_faces(near, tool, tip, tol)
 
 
@@ -369,7 +498,9 @@ def default_deflection(tool: MillingTool) -> float:
 
 
 def _view_direction(em: EngagementMap) -> tuple[float, float, float]:
-    """Camera direction: from the side opposite to the engaged arcs (weighted by span), 35° above."""
+    """Camera direction: from the side opposite to the engaged arcs (weighted by span), turned 30°
+    about the tool axis so that the entry and exit lines are not both on the tool's silhouette, and
+    50° above (steep enough to see down into a slot)."""
     vx = vy = 0.0
     for s in em.slices:
         for a, b in em.machine_intervals(s):
@@ -382,12 +513,13 @@ def _view_direction(em: EngagementMap) -> tuple[float, float, float]:
     if math.hypot(vx, vy) < 1e-9:  # no engagement, or all round: look along the feed
         f = math.radians(em.feed_angle)
         vx, vy = math.cos(f), math.sin(f)
-    az = math.atan2(vy, vx)
-    el = math.radians(35.0)
+    az = math.atan2(vy, vx) + math.radians(30.0)
+    el = math.radians(50.0)
     return (-math.cos(az) * math.cos(el), -math.sin(az) * math.cos(el), math.sin(el))
 
 
-def _info(em: EngagementMap, tool: MillingTool, ipw_volume: float, contact_area: float, deflection: float) -> dict:
+def _info(em: EngagementMap, tool: MillingTool, ipw_volume: float, contacts: list[ContactFace],
+          deflection: float) -> dict:
     return {
         "cl_index": em.cl_index,
         "source": str(em.source),
@@ -408,59 +540,66 @@ def _info(em: EngagementMap, tool: MillingTool, ipw_volume: float, contact_area:
         "engaged_slices": len(em.engaged_slices),
         "removed_volume_mm3": em.removed_volume,
         "contact_area_mm2": em.contact_area,
-        "contact_faces_area_mm2": contact_area,
+        "shank_contact_area_mm2": em.shank_contact_area,
+        # the same areas measured again on the faces shown (flute and shank zones together)
+        "shown_contact_area_mm2": sum(c.area for c in contacts),
         "ipw_volume_mm3": ipw_volume,
         "mesh_deflection_mm": deflection,
         "units": "mm",
     }
 
 
-def cl_scene(ipw: TopoDS_Shape, tool: MillingTool, em: EngagementMap, *, slice_height: float | None = None,
-             deflection: float | None = None, angle: float = DEFAULT_ANGLE,
-             contacts: list[ContactFace] | None = None) -> CLScene:
-    """The scene of CL ``em`` on the workpiece ``ipw`` (the IPW *after* that CL). Re-runs nothing.
+def cl_scene(ipw: TopoDS_Shape | BRepEngine, tool: MillingTool, em: EngagementMap, *,
+             slice_height: float | None = None, deflection: float | None = None,
+             angle: float = DEFAULT_ANGLE) -> CLScene:
+    """The scene of CL ``em`` on the workpiece after that CL (an engine, or its ``ipw``). Re-runs nothing.
 
     ``deflection`` (mm, default :func:`default_deflection`) bounds the meshes' distance to the exact
-    surfaces. ``contacts``: the contact faces, when known (they must be faces of ``ipw``); by default
-    they are found again on ``ipw`` (:func:`contact_faces_at`). ``slice_height``: the run's slice
-    spacing (mm), for the height of the entry / exit lines.
+    surfaces. The contact faces are found again on the workpiece (:func:`contact_faces_at`) and shown
+    whole: a face that runs from the flutes onto the shank is one red face. ``slice_height``: the
+    run's slice spacing (mm), for the height of the entry / exit lines.
     """
-    if ipw is None or ipw.IsNull():
-        raise GeometryError("there is no workpiece to show", em.cl_index)
+    with _kernel_errors("building the 3D scene", em.cl_index):
+        return _cl_scene(ipw, tool, em, slice_height, deflection, angle)
+
+
+def _cl_scene(ipw, tool: MillingTool, em: EngagementMap, slice_height: float | None, deflection: float | None,
+              angle: float) -> CLScene:
+    shape = whole_ipw(ipw)
     deflection = deflection or default_deflection(tool)
     tip = em.position
-    meshed = _meshed_copy(ipw, deflection, angle)
-    # the copy's faces are new objects: find the contact faces among them (same geometry, same result)
-    found = contacts if contacts is not None else None
-    if found is None or em.status == CLStatus.FAILED:
-        found = contact_faces_at(meshed, tool, tip)
-    else:
-        found = contact_faces_at(meshed, tool, tip)  # the caller's faces belong to ``ipw``, not the copy
-    contact_set = [c.face for c in found]
+    meshed = _meshed_copy(shape, deflection, angle).Shape()
+    box = bounding_box(placed_tool(tool, tip))
     ipw_parts, contact_parts = [], []
+    contacts: list[ContactFace] = []
     for f in faces(meshed):
-        (contact_parts if any(f.IsSame(c) for c in contact_set) else ipw_parts).append(_face_mesh(f))
+        # one face at a time, so that the face itself (not pieces split by zone) is what is marked
+        found = find_contact_faces([f], tool, tip) if boxes_overlap(bounding_box(f), box, gap=1e-6) else []
+        contacts += found
+        (contact_parts if found else ipw_parts).append(_face_mesh(f))
     seam = math.radians(em.feed_angle) + math.pi  # as the engine places it: the seam behind the tool
     tool_mesh = tessellate(placed_tool(tool, tip, seam), deflection, angle, weld=False)
     lines = engagement_lines(em, tool, slice_height)
     lo, hi = (np.asarray(c) for c in bounding_box(placed_tool(tool, tip, seam)))
-    # look at the fluted part and what touches it, not the whole shank
-    hi = np.minimum(hi, np.array([np.inf, np.inf, tip[2] + max(tool.flute_length, em.axial_range[1])]))
-    contact = _concatenate(contact_parts)
+    # look at the part of the tool that touches material (or its tip), not the whole shank
+    top = min(tool.length, max(em.axial_range[1], 0.0) + tool.diameter)
+    hi = np.minimum(hi, np.array([np.inf, np.inf, tip[2] + top]))
+    ipw_mesh, contact = _snap([_concatenate(ipw_parts), _concatenate(contact_parts)])
     if not contact.is_empty:
         lo = np.minimum(lo, contact.vertices.min(axis=0))
         hi = np.maximum(hi, contact.vertices.max(axis=0))
     center = 0.5 * (lo + hi)
     radius = float(max(0.5 * np.linalg.norm(hi - lo), tool.diameter)) * 1.5
-    contact_area = sum(area(c.face) for c in found)
+    info = _info(em, tool, volume(shape), contacts, deflection)
     return CLScene(
-        cl_index=em.cl_index, ipw=_concatenate(ipw_parts), contact=contact, tool=tool_mesh, lines=lines,
+        cl_index=em.cl_index, ipw=ipw_mesh, contact=contact, tool=tool_mesh, lines=lines,
         focus=(tuple(float(x) for x in center), radius), view_direction=_view_direction(em),
-        info=_info(em, tool, volume(ipw), contact_area, deflection), deflection=deflection,
+        info=info, deflection=deflection,
     )
 
 
 __all__ = [
-    "CLScene", "EngagementLines", "Mesh", "Replay", "cl_scene", "contact_faces_at", "default_deflection",
-    "engagement_lines", "export_ipw", "replay", "tessellate",
+    "CLScene", "EngagementLines", "Mesh", "Replay", "check_cl_index", "cl_scene", "contact_faces_at",
+    "default_deflection",
+    "engagement_lines", "export_ipw", "replay", "tessellate", "whole_ipw",
 ]

@@ -135,6 +135,45 @@ def unify(shape: TopoDS_Shape) -> TopoDS_Shape:
     return u.Shape()
 
 
+def children(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
+    """The direct sub-shapes of a compound, in order."""
+    from OCP.TopoDS import TopoDS_Iterator
+
+    out = []
+    it = TopoDS_Iterator(shape)
+    while it.More():
+        out.append(it.Value())
+        it.Next()
+    return out
+
+
+def split_into_cells(solid: TopoDS_Shape, size: float | None) -> list[TopoDS_Shape]:
+    """``solid`` cut into square columns of ``size`` mm in X and Y (full height); ``None``: whole.
+
+    Columns without material are left out. The grid starts at the solid's bounding box corner.
+    """
+    if size is None:
+        return [solid]
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+
+    lo, hi = bounding_box(solid)
+    nx = max(1, math.ceil((hi[0] - lo[0]) / size - 1e-9))
+    ny = max(1, math.ceil((hi[1] - lo[1]) / size - 1e-9))
+    out = []
+    for i in range(nx):
+        for j in range(ny):
+            x0, y0 = lo[0] + i * size, lo[1] + j * size
+            # the outer columns reach past the box so no sliver of material is left out
+            x1 = x0 + size if i < nx - 1 else hi[0] + 1.0
+            y1 = y0 + size if j < ny - 1 else hi[1] + 1.0
+            x0, y0 = (x0 - 1.0 if i == 0 else x0), (y0 - 1.0 if j == 0 else y0)
+            box = BRepPrimAPI_MakeBox(gp_Pnt(x0, y0, lo[2] - 1.0), gp_Pnt(x1, y1, hi[2] + 1.0)).Shape()
+            piece = BRepAlgoAPI_Common(solid, box).Shape()
+            if solids(piece):
+                out.append(unify(piece))
+    return out
+
+
 def compound(shapes: Iterable[TopoDS_Shape]) -> TopoDS_Compound:
     c = TopoDS_Compound()
     b = BRep_Builder()

@@ -35,11 +35,12 @@ from functools import lru_cache
 
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
 from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeWire
+from OCP.GC import GC_MakeArcOfCircle
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakePrism, BRepPrimAPI_MakeRevol
 from OCP.gp import gp_Ax1, gp_Ax2, gp_Circ, gp_Dir, gp_Vec
 from OCP.TopoDS import TopoDS_Shape
 
-from fusioncut.engines.brep.occ import fuse_all, placement, planar_face, pnt, wire_from_points
+from fusioncut.engines.brep.occ import fuse_all, placement, planar_face, pnt, solids, wire_from_points
 from fusioncut.model.moves import ArcMove, ArcPlane, Move
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProfile
 
@@ -182,6 +183,64 @@ def _cylinder_arc(r: float, h: float, move: ArcMove) -> TopoDS_Shape | None:
     return _region_prism(pieces, h)
 
 
+def _cylinder_ramp(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape | None:
+    """Oblique line of a cylinder: its convex hull with its translate, from eight sewn faces.
+
+    With the start ``a`` the higher end (the hull is the same read backwards) and ``d`` the
+    horizontal direction towards the lower end ``b``, ``n`` its left normal: the back half cylinder
+    at ``a``, the front half cylinder at ``b``, the two side parallelograms at ``±r n``, the top
+    disk at ``a``, the bottom disk at ``b``, the front half of the top circle and the back half of
+    the bottom circle ruled along the move. No Boolean: a fuse of the tool copies and prisms (the
+    general ramp) is slow and breaks down on short chords where the copies nearly coincide.
+    """
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeSolid, BRepBuilderAPI_MakePolygon, BRepBuilderAPI_Sewing
+    from OCP.BRepLib import BRepLib
+    from OCP.gp import gp_Ax3, gp_Cylinder
+    from OCP.TopAbs import TopAbs_SHELL
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    a, b = (p0, p1) if p0[2] >= p1[2] else (p1, p0)
+    v = (b[0] - a[0], b[1] - a[1], b[2] - a[2])
+    d = _unit((v[0], v[1], 0.0))
+    n = (-d[1], d[0], 0.0)
+    up = (0.0, 0.0, h)
+
+    def half_cylinder(c: Vec3, start: Vec3):
+        ax = gp_Ax3(pnt(c), gp_Dir(*Z), gp_Dir(*start))
+        return BRepBuilderAPI_MakeFace(gp_Cylinder(ax, r), 0.0, math.pi, 0.0, h).Face()
+
+    def half_circle(c: Vec3, start: Vec3):
+        mid = (-start[1], start[0], 0.0)  # a quarter turn counter-clockwise
+        return GC_MakeArcOfCircle(pnt(_add(c, start, r)), pnt(_add(c, mid, r)), pnt(_add(c, start, -r))).Value()
+
+    def disk(c: Vec3):
+        wire = BRepBuilderAPI_MakeWire(BRepBuilderAPI_MakeEdge(half_circle(c, n)).Edge(),
+                                       BRepBuilderAPI_MakeEdge(half_circle(c, (-n[0], -n[1], 0.0))).Edge()).Wire()
+        return BRepBuilderAPI_MakeFace(wire, True).Face()
+
+    def ruled(c: Vec3, start: Vec3):
+        return _prism(BRepBuilderAPI_MakeEdge(half_circle(c, start)).Edge(), v)
+
+    def side(sign: float):
+        q0, q1 = _add(a, n, sign * r), _add(b, n, sign * r)
+        poly = BRepBuilderAPI_MakePolygon(pnt(q0), pnt(q1), pnt(_add(q1, up)), pnt(_add(q0, up)), True)
+        return BRepBuilderAPI_MakeFace(poly.Wire(), True).Face()
+
+    minus_n = (-n[0], -n[1], 0.0)
+    sewing = BRepBuilderAPI_Sewing(1e-7)
+    for face in (half_cylinder(a, n), half_cylinder(b, minus_n), side(1.0), side(-1.0), disk(_add(a, up)), disk(b),
+                 ruled(_add(a, up), minus_n), ruled(a, n)):
+        sewing.Add(face)
+    sewing.Perform()
+    exp = TopExp_Explorer(sewing.SewedShape(), TopAbs_SHELL)
+    if not exp.More():
+        return None
+    solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell(exp.Current())).Solid()
+    BRepLib.OrientClosedSolid_s(solid)
+    return solid
+
+
 def _arc_xy(tool: MillingTool, move: ArcMove, seam: float) -> TopoDS_Shape:
     prof = tool.profile()
     c, p0, p1 = move.center, move.start, move.end
@@ -298,7 +357,9 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
         elif dh < _EPS:
             shape = _plunge(tool, p0, p1, seam)
         else:
-            shape = _ramp(tool, p0, p1, seam)
-    if shape is None:
+            shape = (_cylinder_ramp(*cyl, p0, p1) if cyl else None) or _ramp(tool, p0, p1, seam)
+    if shape is None or not solids(shape):
+        # no exact construction for this tool and move, or the kernel built nothing (seen on
+        # steep chords of a few µm): the published method's sampled sweep, reported as such
         return SweptVolume(sampled_sweep(tool, move, seam), "sampled")
     return SweptVolume(shape, "exact")

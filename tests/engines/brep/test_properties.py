@@ -66,11 +66,11 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
     calls = {"n": 0}
     real = BRepEngine._subtract
 
-    def flaky(self, sweep):
+    def flaky(self, ipw, sweep, ipw_volume):
         calls["n"] += 1
         if calls["n"] == 2:
             raise engine_mod.BooleanFailure("simulated kernel failure")
-        return real(self, sweep)
+        return real(self, ipw, sweep, ipw_volume)
 
     monkeypatch.setattr(BRepEngine, "_subtract", flaky)
     eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0))

@@ -1,0 +1,193 @@
+"""Benchmark: FusionCut's fast path against the published method, in the same run on the same CLs.
+
+    python benchmarks/run_benchmark.py --quick          # ~ a few minutes on 2 cores
+    python benchmarks/run_benchmark.py                  # the full Titan-like program
+
+* **Program**: the Titan-like part of :mod:`titan_program`, written as G-code and read back through
+  FusionCut's G-code reader (tools from the Fusion-style tool comments); moves are split into CL
+  segments of at most 2 mm, helices into chords within 10 µm.
+* **Ours**: the exact B-Rep engine with the IPW in 20 mm cells, at each slice height asked for.
+* **Baseline** (the published method reproduced in our engine): sampled tool copies every R/4 and
+  Booleans on the whole IPW. It is far too slow for the whole program, so it runs the first
+  ``--baseline-cls`` CLs of every operation, starting from our IPW at the start of that operation;
+  the ratio compares the two medians over exactly those CLs.
+* **Parallel**: the same program at 1 mm on Dask with 1 and 2 workers (``--workers``).
+
+A *processed* CL is one whose sweep reached a Boolean (not skipped as an air cut by bounding boxes).
+Growth is the median time of the last 10% of an operation's processed CLs over its first 10%.
+Prints a table and writes ``benchmark.json`` in ``--out``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from titan_program import FULL, QUICK, STOCK_MAX, STOCK_MIN, ProgramSize, titan_program  # noqa: E402
+
+from fusioncut.engines.base import EngineOptions  # noqa: E402
+from fusioncut.engines.brep.engine import BRepEngine, cl_sequence  # noqa: E402
+from fusioncut.io.gcode import read_gcode  # noqa: E402
+from fusioncut.model import BoxStock, CLStatus  # noqa: E402
+
+TINY = ProgramSize(slot_length=4.0, slots=1, depths=(-4.0,), finish_rows=1, contours=1)
+SEGMENT = dict(max_segment_length=2.0, chord_tolerance=0.01)
+OURS = dict(SEGMENT, cell_size=20.0)
+
+
+def rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def stats(times: list[float]) -> dict:
+    if not times:
+        return {"processed": 0, "median_ms": None, "p95_ms": None, "growth": None}
+    q = max(1, len(times) // 10)
+    first, last = statistics.median(times[:q]), statistics.median(times[-q:])
+    return {"processed": len(times), "median_ms": statistics.median(times),
+            "p95_ms": sorted(times)[min(len(times) - 1, int(0.95 * len(times)))],
+            "growth": last / first if first > 0 else None}
+
+
+def processed(m) -> bool:
+    return "boolean" in dict(m.timings_ms)
+
+
+def run_ours(toolpath, stock, slice_height: float, snapshots: dict | None = None) -> dict:
+    engine = BRepEngine(EngineOptions(slice_height=slice_height, **OURS))
+    engine.start(stock)
+    per_op: dict[str, dict] = {}
+    t0 = time.perf_counter()
+    failed = 0
+    current = None
+    for index, move, tool, feed_angle in cl_sequence(toolpath, engine.options):
+        if move.operation != current:
+            current = move.operation
+            if snapshots is not None:
+                snapshots[current] = (index, engine.ipw)
+        m = engine.step(index, move, tool, feed_angle)
+        op = per_op.setdefault(m.operation, {"cls": 0, "times": [], "all": {}, "seconds": 0.0})
+        op["cls"] += 1
+        total = dict(m.timings_ms)["total"]
+        op["seconds"] += total / 1e3
+        op["all"][index] = total
+        if processed(m):
+            op["times"].append(total)
+        failed += m.status == CLStatus.FAILED
+    seconds = time.perf_counter() - t0
+    conservation = abs(engine.stock_volume - engine.ipw_volume - engine.removed_total) / engine.stock_volume
+    return {"seconds": seconds, "failed": failed, "conservation": conservation, "ops": per_op}
+
+
+def run_baseline(toolpath, snapshots: dict, n: int, slice_height: float) -> dict:
+    """The published method on the first ``n`` CLs of each operation, from our IPW at its start."""
+    opts = EngineOptions(slice_height=slice_height, sweep="sampled", cell_size=None, **SEGMENT)
+    sequence = list(cl_sequence(toolpath, opts))
+    out = {}
+    for op, (first, ipw) in snapshots.items():
+        engine = BRepEngine(opts)
+        engine.start(ipw)
+        times = {}
+        for index, move, tool, feed_angle in sequence[first:first + n]:
+            if move.operation != op:
+                break
+            m = engine.step(index, move, tool, feed_angle)
+            if processed(m):
+                times[index] = dict(m.timings_ms)["total"]
+        out[op] = times
+    return out
+
+
+def run_parallel(toolpath, stock, workers: int) -> float:
+    from fusioncut.engines.brep.parallel import ParallelBRepEngine
+
+    with ParallelBRepEngine(EngineOptions(**OURS), workers=workers) as engine:
+        t0 = time.perf_counter()
+        for _ in engine.run(toolpath, stock):
+            pass
+        return time.perf_counter() - t0
+
+
+def fmt(x, spec=".1f") -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="a reduced program (~2 minutes)")
+    ap.add_argument("--tiny", action="store_true", help="a smoke-test size (seconds)")
+    ap.add_argument("--slicing", default="1,0.2", help="slice heights in mm, comma separated")
+    ap.add_argument("--baseline-cls", type=int, default=None, help="CLs per operation for the baseline")
+    ap.add_argument("--workers", default="1,2", help="Dask worker counts to time ('' to skip)")
+    ap.add_argument("--out", type=Path, default=Path("benchmark-results"))
+    args = ap.parse_args(argv)
+    size = TINY if args.tiny else QUICK if args.quick else FULL
+    n_base = args.baseline_cls or (5 if args.tiny else 15 if args.quick else 40)
+    args.out.mkdir(parents=True, exist_ok=True)
+    program = args.out / "titan.nc"
+    program.write_text(titan_program(size))
+    toolpath = read_gcode(program)
+    stock = BoxStock(STOCK_MIN, STOCK_MAX)
+    heights = [float(h) for h in args.slicing.split(",") if h]
+
+    t_start = time.perf_counter()
+    snapshots: dict = {}
+    ours = {h: run_ours(toolpath, stock, h, snapshots if k == 0 else None) for k, h in enumerate(heights)}
+    baseline = run_baseline(toolpath, snapshots, n_base, heights[0])
+    parallel = {int(w): run_parallel(toolpath, stock, int(w)) for w in args.workers.split(",") if w}
+    report = {"size": "tiny" if args.tiny else "quick" if args.quick else "full",
+              "program": str(program), "slice_heights_mm": heights, "baseline_cls_per_op": n_base,
+              "peak_rss_mb": rss_mb(), "wall_s": time.perf_counter() - t_start, "operations": {}}
+    first = ours[heights[0]]
+    for op, data in first["ops"].items():
+        row = {"cls": data["cls"], "seconds_1": data["seconds"]}
+        for h in heights:
+            row[f"slice_{h:g}"] = stats(ours[h]["ops"][op]["times"])
+            row[f"slice_{h:g}"]["seconds"] = ours[h]["ops"][op]["seconds"]
+        base = baseline.get(op, {})
+        same = [data["all"][i] for i in base if i in data["all"]]
+        row["baseline_median_ms"] = statistics.median(base.values()) if base else None
+        row["ours_same_cls_median_ms"] = statistics.median(same) if same else None
+        row["ratio"] = (row["baseline_median_ms"] / row["ours_same_cls_median_ms"]
+                        if base and same and row["ours_same_cls_median_ms"] > 0 else None)
+        report["operations"][op] = row
+    report["program_seconds"] = {f"{h:g}": ours[h]["seconds"] for h in heights}
+    report["failed_cls"] = {f"{h:g}": ours[h]["failed"] for h in heights}
+    report["conservation"] = {f"{h:g}": ours[h]["conservation"] for h in heights}
+    report["parallel_seconds"] = parallel
+    if 1 in parallel and 2 in parallel:
+        report["parallel_speedup_2_over_1"] = parallel[1] / parallel[2]
+    (args.out / "benchmark.json").write_text(json.dumps(report, indent=2))
+    _print(report, heights)
+    return report
+
+
+def _print(report: dict, heights: list[float]) -> None:
+    head = f"{'operation':<10} {'CLs':>6} {'proc':>6}"
+    for h in heights:
+        head += f" | {h:g} mm: {'total s':>8} {'median':>7} {'p95':>7} {'growth':>6}"
+    head += f" | {'base ms':>8} {'ours ms':>8} {'ratio':>6}"
+    print(head)
+    for op, row in report["operations"].items():
+        line = f"{op:<10} {row['cls']:>6} {row[f'slice_{heights[0]:g}']['processed']:>6}"
+        for h in heights:
+            s = row[f"slice_{h:g}"]
+            line += (f" | {'':5}{s['seconds']:>8.1f} {fmt(s['median_ms']):>7} {fmt(s['p95_ms']):>7} "
+                     f"{fmt(s['growth'], '.2f'):>6}")
+        line += (f" | {fmt(row['baseline_median_ms']):>8} {fmt(row['ours_same_cls_median_ms']):>8} "
+                 f"{fmt(row['ratio']):>6}")
+        print(line)
+    print(f"program seconds: {report['program_seconds']}  failed CLs: {report['failed_cls']}  "
+          f"conservation: {report['conservation']}")
+    print(f"peak RSS: {report['peak_rss_mb']:.0f} MB  parallel seconds by workers: {report['parallel_seconds']}"
+          + (f"  speedup 2/1: {report['parallel_speedup_2_over_1']:.2f}" if "parallel_speedup_2_over_1" in report else ""))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,122 @@
+"""``fusioncut view`` (3D scene of one CL as GLB + HTML) and ``fusioncut export-ipw`` (the workpiece after a CL)."""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+
+from fusioncut.cli._errors import friendly_errors
+from fusioncut.engines.base import EngineOptions
+
+console = Console()
+
+# the demo's engine options, the same as `fusioncut demo` uses, so CL numbers match its results
+DEMO_MAX_SEGMENT = 2.0
+
+
+def load_inputs(source: str, slice_height: float | None = None):
+    """``(toolpath, stock, options, default_tool, name)`` of a job file, or of the demo for ``"demo"``."""
+    if source == "demo":
+        from fusioncut.demo import demo_stock, demo_toolpath
+
+        options = EngineOptions(slice_height=slice_height or 1.0, max_segment_length=DEMO_MAX_SEGMENT)
+        return demo_toolpath(), demo_stock(), options, None, "demo"
+    from fusioncut.io.job import load_job
+    from fusioncut.runner import prepare_job
+
+    job, base = load_job(source)
+    p = prepare_job(job, base)
+    options = replace(p.options, slice_height=slice_height) if slice_height else p.options
+    return p.toolpath, p.stock, options, p.default_tool, job.name
+
+
+def _load(source: str, cl: int, slice_height: float | None):
+    """The inputs, checked (CL index included) before anything long runs."""
+    from fusioncut.engines.brep.export import check_cl_index
+
+    inputs = load_inputs(source, slice_height)
+    check_cl_index(inputs[0], cl, inputs[2])
+    return inputs
+
+
+def _replay(inputs, cl: int):
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from fusioncut.engines.brep.export import replay
+
+    toolpath, stock, options, default_tool, name = inputs
+    with Progress(TextColumn("[bold]replaying {task.fields[name]} to CL"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=console, transient=True) as bar:
+        task = bar.add_task("replay", total=cl + 1, name=name)
+        state = replay(toolpath, stock, cl, options, default_tool,
+                       on_cl=lambda m, total: bar.update(task, completed=m.cl_index + 1, total=total))
+    return state, options
+
+
+def _size(path: Path) -> str:
+    n = path.stat().st_size
+    return f"{n / 1e6:.1f} MB" if n >= 1e5 else f"{n / 1e3:.0f} kB"
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("view")
+    @friendly_errors
+    def view(
+        source: str = typer.Argument(..., help="Job JSON file, or 'demo' for the built-in demo."),
+        cl: int = typer.Option(..., "--cl", min=0, help="CL index to show (as in the run's results)."),
+        out: Path = typer.Option(..., "--out", "-o", help="HTML page to write (self-contained, opens from disk)."),
+        glb: Optional[Path] = typer.Option(None, "--glb", help="Also write the scene as glTF binary (.glb)."),
+        deflection: float = typer.Option(0.0, "--deflection", min=0.0,
+                                         help="Mesh deflection in mm (0: from the tool size)."),
+        slice_height: Optional[float] = typer.Option(
+            None, "--slice-height", min=1e-4, help="Axial slice spacing in mm (default: the job's, 1 for demo)."),
+        title: Optional[str] = typer.Option(None, "--title", help="Page title."),
+    ) -> None:
+        """3D view of one CL: workpiece, tool, contact faces, entry/exit lines (HTML page, optional GLB)."""
+        from fusioncut.engines.brep.export import cl_scene
+        from fusioncut.viz.scene import scene_glb, three_dir, write_view_html
+
+        if out.suffix.lower() not in (".html", ".htm"):
+            raise ValueError(f"{out}: the page is written as .html")
+        if glb is not None and glb.suffix.lower() != ".glb":
+            raise ValueError(f"{glb}: the scene is written as .glb")
+        for p in (out, glb):
+            if p is not None and not p.parent.is_dir():
+                raise ValueError(f"{p.parent}: the output folder does not exist")
+        inputs = _load(source, cl, slice_height)
+        three_dir()  # fail before a long replay when the page could not be written anyway
+        state, options = _replay(inputs, cl)
+        scene = cl_scene(state.engine.ipw, state.tool, state.map, slice_height=options.slice_height,
+                         deflection=deflection or None)
+        data = scene_glb(scene)
+        if glb is not None:
+            glb.write_bytes(data)
+            console.print(f"wrote {glb} ({_size(glb)})", highlight=False)
+        write_view_html(data, out, title)
+        m = state.map
+        console.print(f"wrote {out} ({_size(out)}): CL {cl} of {state.cl_count}, {m.status.value}, "
+                      f"{len(m.engaged_slices)} engaged slices", highlight=False)
+
+    @app.command("export-ipw")
+    @friendly_errors
+    def export_ipw(
+        source: str = typer.Argument(..., help="Job JSON file, or 'demo' for the built-in demo."),
+        cl: int = typer.Option(..., "--cl", min=0, help="The workpiece after this CL index."),
+        out: Path = typer.Option(..., "--out", "-o", help="Output file: .step/.stp (exact), .stl (meshed), .brep."),
+        deflection: float = typer.Option(0.01, "--deflection", min=1e-5, help="STL facet deflection, mm."),
+    ) -> None:
+        """Write the in-process workpiece after CL N as STEP, STL or BREP."""
+        from fusioncut.engines.brep.export import IPW_SUFFIXES, export_ipw as write_ipw
+
+        if out.suffix.lower() not in IPW_SUFFIXES:
+            raise ValueError(f"{out}: unsupported workpiece format {out.suffix!r} (use .step, .stp, .stl or .brep)")
+        if not out.parent.is_dir():
+            raise ValueError(f"{out.parent}: the output folder does not exist")
+        state, _ = _replay(_load(source, cl, None), cl)
+        kind = write_ipw(state.engine.ipw, out, deflection)
+        extra = f", deflection {deflection} mm" if kind == "STL" else ""
+        console.print(f"wrote {out} ({kind}{extra}, {_size(out)}): the workpiece after CL {cl} of {state.cl_count}, "
+                      f"{state.engine.ipw_volume:.3f} mm³", highlight=False)

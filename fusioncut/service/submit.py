@@ -1,0 +1,230 @@
+"""Turning a request into a job folder, and checking the job before it is queued.
+
+Everything a worker would trip over is found here, while the user is still waiting for the answer:
+the job must parse (pydantic), every file it names must have been uploaded under a safe name, the
+tool library and every toolpath file are read once with the project's own readers (so a malformed
+G-code line is reported with its file:line:column, as the CLI reports it), every tool a move uses
+must be defined, and the job must not have more CL segments than the service accepts.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from fusioncut.errors import FusionCutError, InputError
+from fusioncut.io.job import Job
+from fusioncut.service.files import INPUT_DIR, JOB_FILE, check_name
+
+STOCK_SUFFIXES = (".step", ".stp", ".brep")
+SCENE_FILE = "scene.json"  # stock outline for the 3D view, computed while checking the job
+
+
+class SubmissionError(Exception):
+    """A request the service refuses: ``status`` (4xx) and a one-line message for the user."""
+
+    def __init__(self, status: int, message: str):
+        super().__init__(message)
+        self.status = status
+        self.message = message
+
+
+class JobSubmission(BaseModel):
+    """JSON body of ``POST /api/jobs``: the demo, or a job with its input files given inline.
+
+    ``files`` maps plain file names (as the job names them) to their text: G-code, APT/CLSF,
+    Fusion JSON posts, tool libraries (.json/.tbl), or STEP stock. Binary files (Fusion ``.tools``
+    archives, binary BREP) need the multipart form instead.
+    """
+
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
+        {"demo": True},
+        {"job": {"name": "slot", "stock": {"kind": "box", "min": [0, 0, -5], "max": [30, 20, 0]},
+                 "tools": [{"number": 1, "kind": "flat", "diameter": 6, "flute_length": 12}],
+                 "toolpaths": ["slot.nc"], "options": {"max_segment_length": 4}},
+         "files": {"slot.nc": "T1 M6\nG0 X-5 Y10 Z5\nG1 Z-1 F300\nG1 X35 F600\nM30\n"}},
+    ]})
+
+    demo: bool = Field(False, description="run the built-in demo block (no job or files)")
+    name: str | None = Field(None, max_length=200, description="job name (default: the job's own name)")
+    job: Job | None = Field(None, description="the job, as in a job file; paths are names in `files`")
+    files: dict[str, str] = Field(default_factory=dict, description="file name -> file text")
+
+
+MULTIPART_SCHEMA: dict[str, Any] = {
+    "type": "object",
+    "description": (
+        "Upload form. `job` is a job JSON whose file fields may be left out: `toolpaths` defaults to "
+        "the uploaded toolpath files, `tool_library` to the uploaded library, `stock` to the uploaded "
+        "STEP file (else {\"kind\": \"infer\"}). The option fields override the job's options."),
+    "properties": {
+        "toolpath": {"type": "array", "items": {"type": "string", "format": "binary"},
+                     "description": "toolpath files: G-code, APT/CLSF (.apt/.cls), Fusion JSON post (.json)"},
+        "tool_library": {"type": "string", "format": "binary", "description": "tool library (.json/.tools/.tbl)"},
+        "stock": {"type": "string", "format": "binary", "description": "stock solid (.step/.stp/.brep)"},
+        "job": {"type": "string", "description": "job JSON (may be partial, see above)"},
+        "demo": {"type": "boolean", "description": "run the built-in demo instead"},
+        "name": {"type": "string"},
+        "slice_height": {"type": "number"},
+        "max_segment_length": {"type": "number"},
+        "sweep": {"type": "string", "enum": ["exact", "sampled"]},
+        "strict": {"type": "boolean"},
+    },
+}
+
+OPTION_FIELDS = {"slice_height": float, "max_segment_length": float, "sweep": str}
+
+
+@dataclass
+class Checked:
+    job: Job
+    total_cls: int
+    stock: dict[str, Any] | None
+
+
+def validation_message(exc: ValidationError, prefix: str = "") -> str:
+    """The first problem as ``path.to.field: message``, and how many there are."""
+    first = exc.errors()[0]
+    loc = ".".join(str(p) for p in (*([prefix] if prefix else []), *first["loc"])) or "<body>"
+    more = f" ({exc.error_count()} problems in all)" if exc.error_count() > 1 else ""
+    return f"{loc}: {first['msg']}{more}"
+
+
+def parse_json_body(raw: bytes) -> JobSubmission:
+    try:
+        data = json.loads(raw)
+    except UnicodeDecodeError:
+        raise SubmissionError(422, "the body is not UTF-8 text") from None
+    except json.JSONDecodeError as exc:
+        raise SubmissionError(422, f"the body is not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
+    if isinstance(data, dict) and "toolpaths" in data and "job" not in data:
+        raise SubmissionError(422, 'a job must be wrapped with its files: {"job": {...}, "files": {"name.nc": "text"}}')
+    try:
+        return JobSubmission.model_validate(data)
+    except ValidationError as exc:
+        raise SubmissionError(422, validation_message(exc)) from None
+
+
+def write_text_files(files: dict[str, str], folder: Path) -> dict[str, Path]:
+    out = {}
+    for name, text in files.items():
+        safe = _checked_name(name, "files")
+        p = folder / safe
+        p.write_text(text, encoding="utf-8")
+        out[safe] = p
+    return out
+
+
+def _checked_name(name: str, what: str) -> str:
+    try:
+        return check_name(name, f"{what}: file name")
+    except InputError as exc:
+        raise SubmissionError(422, str(exc)) from None
+
+
+def build_job_from_form(job_text: str | None, uploads: dict[str, list[str]], form: dict[str, str]) -> Job:
+    """The job of a multipart upload: the ``job`` field completed with the uploaded file names and the
+    option fields (see :data:`MULTIPART_SCHEMA`)."""
+    data: dict[str, Any] = {}
+    if job_text:
+        try:
+            data = json.loads(job_text)
+        except json.JSONDecodeError as exc:
+            raise SubmissionError(422, f"job: not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
+        if not isinstance(data, dict):
+            raise SubmissionError(422, "job: must be a JSON object")
+    if uploads.get("toolpath") and "toolpaths" not in data:
+        data["toolpaths"] = list(uploads["toolpath"])
+    if uploads.get("tool_library") and "tool_library" not in data:
+        data["tool_library"] = uploads["tool_library"][0]
+    if "stock" not in data:
+        data["stock"] = ({"kind": "file", "path": uploads["stock"][0]} if uploads.get("stock") else {"kind": "infer"})
+    if form.get("name"):
+        data["name"] = form["name"]
+    options = dict(data.get("options") or {})
+    for key, conv in OPTION_FIELDS.items():
+        value = form.get(key)
+        if value not in (None, ""):
+            try:
+                options[key] = conv(value)
+            except ValueError:
+                raise SubmissionError(422, f"{key}: {value!r} is not a number") from None
+    if options:
+        data["options"] = options
+    if form.get("strict") not in (None, ""):
+        data["strict"] = form["strict"].lower() in ("1", "true", "on", "yes")
+    if not data.get("toolpaths"):
+        raise SubmissionError(422, "no toolpath file: upload at least one (field 'toolpath') or choose the demo")
+    try:
+        return Job.model_validate(data)
+    except ValidationError as exc:
+        raise SubmissionError(422, validation_message(exc, "job")) from None
+
+
+def _relative(message: str, folder: Path) -> str:
+    return message.replace(f"{folder}/", "").replace(str(folder), ".")
+
+
+def check_job(job: Job, folder: Path, max_cls: int) -> Checked:
+    """Check ``job`` against the files in ``folder`` (see the module doc); raises :class:`SubmissionError`."""
+    present = {p.name for p in folder.iterdir() if p.is_file()}
+    named: list[tuple[str, str]] = [(f"toolpaths[{k}]", n) for k, n in enumerate(job.toolpaths)]
+    if job.tool_library:
+        named.append(("tool_library", job.tool_library))
+    if job.stock.kind == "file":
+        named.append(("stock.path", job.stock.path or ""))
+    for where, name in named:
+        _checked_name(name, f"job.{where}")
+        if name not in present:
+            raise SubmissionError(422, f"job.{where}: file {name!r} was not uploaded")
+    if job.stock.kind == "file" and not (job.stock.path or "").lower().endswith(STOCK_SUFFIXES):
+        raise SubmissionError(422, f"job.stock.path: {job.stock.path!r} is not a STEP or BREP file "
+                                   f"({', '.join(STOCK_SUFFIXES)})")
+    try:
+        return _read_inputs(job, folder, max_cls)
+    except FusionCutError as exc:
+        raise SubmissionError(422, _relative(str(exc), folder)) from None
+    except (OSError, ValueError) as exc:
+        raise SubmissionError(422, _relative(f"{type(exc).__name__}: {exc}", folder)) from None
+
+
+def _read_inputs(job: Job, folder: Path, max_cls: int) -> Checked:
+    # The runner's own reading and checking, so that the service accepts exactly what `fusioncut
+    # run` accepts and refuses it with the same message; it writes nothing.
+    from fusioncut.engines.segments import cl_segments
+    from fusioncut.model.stock import BoxStock, CylinderStock
+    from fusioncut.runner import prepare_job
+
+    p = prepare_job(job, folder)
+    total = len(cl_segments(p.toolpath.moves, p.options.max_segment_length, p.options.chord_tolerance))
+    if total > max_cls:
+        raise SubmissionError(422, f"the job has {total} CL segments, more than this service accepts ({max_cls}); "
+                                   "split it or use a longer max_segment_length")
+    stock: dict[str, Any] | None = None  # a STEP stock is only read by the worker
+    if isinstance(p.stock, BoxStock):
+        stock = {"kind": "box", "min": list(p.stock.minimum), "max": list(p.stock.maximum)}
+    elif isinstance(p.stock, CylinderStock):
+        stock = {"kind": "cylinder", "base_center": list(p.stock.base_center), "radius": p.stock.radius,
+                 "height": p.stock.height}
+    return Checked(job, total, stock)
+
+
+def stage_folder(jobs_dir: Path, token: str) -> Path:
+    folder = jobs_dir / f".staging-{token}" / INPUT_DIR
+    folder.mkdir(parents=True)
+    return folder
+
+
+def commit_folder(staged_input: Path, job_dir: Path, checked: Checked) -> None:
+    """Write the checked job and move the staged folder into place as the job's folder."""
+    (staged_input / JOB_FILE).write_text(checked.job.model_dump_json(indent=2), encoding="utf-8")
+    (staged_input.parent / SCENE_FILE).write_text(json.dumps({"stock": checked.stock}), encoding="utf-8")
+    staged_input.parent.rename(job_dir)
+
+
+def discard(staged_input: Path) -> None:
+    shutil.rmtree(staged_input.parent, ignore_errors=True)
