@@ -8,8 +8,8 @@
   segments of at most 2 mm, helices into chords within 10 µm.
 * **Ours**: the exact B-Rep engine with the IPW in 20 mm cells, at each slice height asked for.
 * **Baseline** (the published method reproduced in our engine): sampled tool copies every R/4 and
-  Booleans on the whole IPW. It is far too slow for the whole program, so it runs the first
-  ``--baseline-cls`` CLs of every operation, starting from our IPW at the start of that operation;
+  Booleans on the whole IPW. It is far too slow for the whole program, so it runs
+  ``--baseline-cls`` CLs of every operation from its first processed CL, on our IPW just before it;
   the ratio compares the two medians over exactly those CLs.
 * **Parallel**: the same program at 1 mm on Dask with 1 and 2 workers (``--workers``).
 
@@ -65,13 +65,12 @@ def run_ours(toolpath, stock, slice_height: float, snapshots: dict | None = None
     per_op: dict[str, dict] = {}
     t0 = time.perf_counter()
     failed = 0
-    current = None
     for index, move, tool, feed_angle in cl_sequence(toolpath, engine.options):
-        if move.operation != current:
-            current = move.operation
-            if snapshots is not None:
-                snapshots[current] = (index, engine.ipw)
+        # the baseline starts at each operation's first processed CL, from the IPW just before it
+        before = (index, engine.ipw) if snapshots is not None and move.operation not in snapshots else None
         m = engine.step(index, move, tool, feed_angle)
+        if before is not None and processed(m):
+            snapshots[move.operation] = before
         op = per_op.setdefault(m.operation, {"cls": 0, "times": [], "all": {}, "seconds": 0.0})
         op["cls"] += 1
         total = dict(m.timings_ms)["total"]
