@@ -35,8 +35,8 @@ class EngineOptions:
     sweep: Literal["exact", "sampled"] = "exact"
     failure_dir: Path | None = None
     merge_growth: float = 0.5
-    fuzzy: float = 1e-6
-    fuzzy_retries: tuple[float, ...] = (1e-5, 1e-4)
+    fuzzy: float = 0.0
+    fuzzy_retries: tuple[float, ...] = (1e-6, 1e-5, 1e-4)
     cell_size: float | None = None
 
 

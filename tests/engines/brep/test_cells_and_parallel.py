@@ -52,7 +52,7 @@ def conserved(engine):
 
 @pytest.fixture(scope="module")
 def whole():
-    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=None))
+    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=None, fuzzy=1e-6))
     maps = list(engine.run(program(), STOCK))
     assert sum(m.status == CLStatus.ENGAGED for m in maps) > 20
     return maps
@@ -60,7 +60,7 @@ def whole():
 
 @pytest.mark.parametrize("cell_size", [10.0, 20.0])
 def test_cells_equal_the_whole_workpiece(whole, cell_size):
-    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=cell_size))
+    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=cell_size, fuzzy=1e-6))
     fast = list(engine.run(program(), STOCK))
     assert len(engine.cells) > 1
     assert_same(fast, whole)
@@ -71,12 +71,12 @@ def test_cells_equal_the_whole_workpiece(whole, cell_size):
 
 
 def test_cell_checkpoint_round_trip(tmp_path):
-    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=10.0))
+    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=10.0, fuzzy=1e-6))
     engine.start(STOCK)
     for _, _m in zip(range(6), engine.process(program())):
         pass
     engine.save_checkpoint(tmp_path, next_cl=6)
-    again = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=10.0))
+    again = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=10.0, fuzzy=1e-6))
     assert again.load_checkpoint(tmp_path) == 6
     assert len(again.cells) == len(engine.cells)
     assert again.ipw_volume == engine.ipw_volume
@@ -86,7 +86,7 @@ def test_dask_workers_equal_one_process(whole):
     pytest.importorskip("distributed")
     from fusioncut.engines.brep.parallel import ParallelBRepEngine
 
-    with ParallelBRepEngine(EngineOptions(max_segment_length=3.0, cell_size=10.0), workers=2, batch=7) as engine:
+    with ParallelBRepEngine(EngineOptions(max_segment_length=3.0, cell_size=10.0, fuzzy=1e-6), workers=2, batch=7) as engine:
         maps = list(engine.run(program(), STOCK))
         conserved(engine)
     assert_same(maps, whole)
