@@ -254,7 +254,7 @@ class BRepEngine:
         as a failure and retried with the next fuzzy value.
         """
         last = "unknown"
-        sweep_volume = volume(sweep)
+        sweep_volume = None  # only needed once something is removed
         for fuzzy in (self.options.fuzzy, *self.options.fuzzy_retries):
             pf = BOPAlgo_PaveFiller()
             pf.SetArguments(shape_list([ipw, sweep]))
@@ -271,6 +271,7 @@ class BRepEngine:
             removed = volume(common.Shape())
             if removed <= 1e-12 * max(1.0, self.stock_volume):
                 return 0.0, None, None
+            sweep_volume = volume(sweep) if sweep_volume is None else sweep_volume
             if removed > sweep_volume * (1 + 1e-6) + 1e-9:
                 # more material than the tool swept: the intersection went wrong, not the physics
                 last = f"removed {removed:.6g} mm³ > swept {sweep_volume:.6g} mm³ (fuzzy={fuzzy})"
