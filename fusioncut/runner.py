@@ -35,7 +35,7 @@ from typing import Any
 from fusioncut import __version__
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
-from fusioncut.engines.segments import cl_segments
+from fusioncut.engines.segments import segments_for
 from fusioncut.errors import FusionCutError, InputError, ToolDefinitionError
 from fusioncut.io.job import RUN_OPTIONS, Job, build_stock, job_hash, read_toolpath
 from fusioncut.io.results import ResultWriter, load_results
@@ -272,7 +272,7 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
     out_dir = Path(out_dir)
     options = options or EngineOptions()
     engine = BRepEngine(options)
-    segments = cl_segments(toolpath.moves, options.max_segment_length, options.chord_tolerance)
+    segments = segments_for(toolpath.moves, options)
     total = len(segments)
     expected: dict[str, int] = {}
     for s in segments:

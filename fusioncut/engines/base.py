@@ -18,8 +18,10 @@ class EngineOptions:
 
     ``slice_height``: axial slice spacing; slice k covers [k, k+1)*slice_height above the tip and is
     evaluated in the middle of its part that touches material. ``max_segment_length``: longer moves are split into CL segments of at most
-    this length (None: as programmed). ``chord_tolerance``: helices / ZX / YZ arcs become chords within
-    this distance of the path. ``sweep``: "exact" or "sampled" (tool copies every R/4, the published
+    this length (None: as programmed). ``chord_tolerance``: ZX / YZ arcs become chords within
+    this distance of the path. ``ramp_step``: ramps and helices (feed moves going down or up while
+    moving sideways) become horizontal steps whose swept positions stay within this distance of the
+    path (see :mod:`fusioncut.engines.segments` for why the oblique sweep is not used). ``sweep``: "exact" or "sampled" (tool copies every R/4, the published
     method). ``failure_dir``: where the shapes of a failed Boolean are saved as .brep.
     ``merge_growth``: merge same-surface faces of a workpiece cell when its face count grew by this
     fraction since the last merge. ``cell_size``: the workpiece is kept as square columns of this
@@ -32,6 +34,7 @@ class EngineOptions:
     slice_height: float = 1.0
     max_segment_length: float | None = None
     chord_tolerance: float = 1e-3
+    ramp_step: float = 1e-2
     sweep: Literal["exact", "sampled"] = "exact"
     failure_dir: Path | None = None
     merge_growth: float = 0.5

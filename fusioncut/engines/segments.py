@@ -1,10 +1,25 @@
 """Cutting a toolpath into CL segments (pure geometry, no kernel).
 
-A CL segment is one motion the engine evaluates; the engagement is reported with the tool at its end.
-Lines and XY arcs are exact sweeps; helices and arcs in the ZX / YZ planes are replaced by chords
-whose distance from the true path is at most ``chord_tolerance`` mm (the sagitta
-``rho * (1 - cos(dtheta / 2))``), so the swept solid differs from the exact one by at most that
-distance (Hausdorff). Every chord end lies exactly on the programmed path.
+A CL segment is one motion the engine evaluates; the engagement is reported with the tool at its end,
+and every CL end lies exactly on the programmed path.
+
+* Horizontal lines, XY arcs and vertical plunges are swept exactly.
+* Arcs in the ZX / YZ planes become chords whose sagitta ``rho * (1 - cos(dtheta / 2))`` is at most
+  ``chord_tolerance`` mm.
+* Feed moves that go down or up while moving sideways at a slope up to ``STAIRCASE_SLOPE`` (ramps,
+  helices, those chords) become a **staircase**: steps that each move horizontally (a line, or an XY arc for a helix) at the height
+  of the step's end. The step's sweep contains the short vertical move at its start, and every
+  swept tool position lies within ``ramp_step`` mm of the programmed path (the corner of a step is
+  ``dh * dz / L`` from the oblique line it replaces).
+
+Why not the exact oblique sweep: the convex hull of a flat end mill moved obliquely has a ruled
+bottom face (its circle extruded along the move), which is not one of OCCT's analytic surfaces. Left
+in the workpiece, such faces meet the next tool cylinders nearly tangentially and OCCT's Booleans
+then go silently wrong: on a helical entry (Titan-like benchmark) a chord removed 0 mm³ instead of
+>= 5.6 mm³, a plain cylinder probe at the next CL also gave 0, and a later chord "removed" the whole
+7,193 mm³ sweep, with no error from the kernel at any fuzzy value. Steps leave only planes and
+cylinders, on which the Booleans are as robust as on lines. Rapids and steeper moves keep the exact
+oblique sweep (a staircase of a long diagonal rapid would be thousands of steps through air).
 """
 from __future__ import annotations
 
@@ -31,17 +46,65 @@ def chords(arc: ArcMove, chord_tolerance: float) -> list[LinearMove]:
     ]
 
 
+_EPS = 1e-9
+# Steeper moves keep the oblique sweep: their steps would be a few µm long, and the µm slivers such
+# steps leave between tool cylinders broke later Booleans (1055_utab: 41 of 174 CLs failed when its
+# 45-80° entry ramps were stepped, none with the oblique sweep). Helical and linear entries, which
+# CAM systems post at 1-5°, are stepped.
+STAIRCASE_SLOPE = 0.2  # dz / dh
+
+
+def staircase(move: Move, ramp_step: float) -> list[Move]:
+    """Horizontal steps replacing an oblique feed move (a line or an XY helix), within ``ramp_step`` mm.
+
+    Step k moves from the path's point at t_k to the one at t_k+1, at the height of the latter;
+    other moves are returned as they are.
+    """
+    if move.is_rapid:
+        return [move]
+    dz = move.end[2] - move.start[2]
+    if isinstance(move, ArcMove):
+        if move.plane != ArcPlane.XY or not move.is_helix:
+            return [move]
+        dh = abs(move.sweep) * max(move.radius, move.end_radius)
+        # a quarter turn at most per step keeps every XY arc sweep a simple one
+        n_min = math.ceil(abs(move.sweep) / (math.pi / 2) - 1e-12)
+    else:
+        dh = math.hypot(move.end[0] - move.start[0], move.end[1] - move.start[1])
+        n_min = 1
+    if abs(dz) < _EPS or dh < _EPS or abs(dz) > STAIRCASE_SLOPE * dh:
+        return [move]
+    n = max(n_min, math.ceil(dh * abs(dz) / math.hypot(dh, dz) / ramp_step - 1e-12))
+    out: list[Move] = []
+    for k in range(n):
+        t0, t1 = k / n, (k + 1) / n
+        end = move.end if k + 1 == n else move.point_at(t1)
+        start = move.point_at(t0)
+        start = (start[0], start[1], end[2])
+        if isinstance(move, ArcMove):
+            piece = move.piece(t0, t1)
+            c = piece.center
+            out.append(replace(piece, start=start, end=end, center=(c[0], c[1], end[2])))
+        else:
+            out.append(replace(move, start=start, end=end))
+    return out
+
+
 def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float | None = None,
-                chord_tolerance: float = 1e-3) -> list[Move]:
+                chord_tolerance: float = 1e-3, ramp_step: float = 1e-2) -> list[Move]:
     """The CL segments of ``moves``, in order; no move is dropped (a zero-length one stays a segment)."""
     out: list[Move] = []
     for m in moves:
-        if isinstance(m, ArcMove) and (m.is_helix or m.plane != ArcPlane.XY):
-            for c in chords(m, chord_tolerance):
-                out += c.split(max_segment_length)
-        else:
-            out += m.split(max_segment_length)
+        pieces = chords(m, chord_tolerance) if isinstance(m, ArcMove) and m.plane != ArcPlane.XY else [m]
+        for piece in pieces:
+            for step in staircase(piece, ramp_step):
+                out += step.split(max_segment_length)
     return out
+
+
+def segments_for(moves: list[Move] | tuple[Move, ...], options) -> list[Move]:
+    """:func:`cl_segments` with the lengths of an :class:`~fusioncut.engines.base.EngineOptions`."""
+    return cl_segments(moves, options.max_segment_length, options.chord_tolerance, options.ramp_step)
 
 
 def horizontal_direction(move: Move) -> tuple[float, float] | None:
@@ -53,4 +116,4 @@ def horizontal_direction(move: Move) -> tuple[float, float] | None:
     return (t[0] / h, t[1] / h)
 
 
-__all__ = ["chords", "cl_segments", "horizontal_direction", "replace"]
+__all__ = ["chords", "cl_segments", "horizontal_direction", "segments_for", "staircase"]

@@ -195,12 +195,12 @@ def check_job(job: Job, folder: Path, max_cls: int) -> Checked:
 def _read_inputs(job: Job, folder: Path, max_cls: int) -> Checked:
     # The runner's own reading and checking, so that the service accepts exactly what `fusioncut
     # run` accepts and refuses it with the same message; it writes nothing.
-    from fusioncut.engines.segments import cl_segments
+    from fusioncut.engines.segments import segments_for
     from fusioncut.model.stock import BoxStock, CylinderStock
     from fusioncut.runner import prepare_job
 
     p = prepare_job(job, folder)
-    total = len(cl_segments(p.toolpath.moves, p.options.max_segment_length, p.options.chord_tolerance))
+    total = len(segments_for(p.toolpath.moves, p.options))
     if total > max_cls:
         raise SubmissionError(422, f"the job has {total} CL segments, more than this service accepts ({max_cls}); "
                                    "split it or use a longer max_segment_length")

@@ -18,6 +18,7 @@ import fusioncut
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.export import cl_scene, replay
 from fusioncut.errors import FusionCutError
+from fusioncut.engines.segments import segments_for
 from fusioncut.model import BoxStock, FlatEndMill, LinearMove, Toolpath
 from fusioncut.viz import scene as viz
 from fusioncut.viz.scene import BACKGROUND, LAYERS, MACHINE_TO_GLTF, glb_json, scene_glb, write_view_html
@@ -31,10 +32,11 @@ CHROMIUM = "/usr/bin/chromium"
 
 @pytest.fixture(scope="module")
 def cl_state():
-    # a side pass, then a full slot along +X that stops inside the block: CL 2
+    # a side pass, a ramp, then a full slot along +X that stops inside the block: the last CL
     pts = [(-5.0, 5.0, -2.0), (12.0, 5.0, -2.0), (-5.0, 12.0, -3.0), TIP]
     tp = Toolpath(tuple(LinearMove(a, b, feed=600.0, tool=1) for a, b in zip(pts, pts[1:])), {1: TOOL})
-    return replay(tp, STOCK, 2, EngineOptions(slice_height=0.5))
+    options = EngineOptions(slice_height=0.5)
+    return replay(tp, STOCK, len(segments_for(tp.moves, options)) - 1, options)
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +100,7 @@ def test_glb_bounds_are_the_parts(glb, tmp_path, cl_state):
     assert np.allclose(np.hypot(v[:, 0] - TIP[0], v[:, 1] - TIP[1]), 3.0, atol=1e-5)
 
 
-def test_glb_colours_and_extras(glb):
+def test_glb_colours_and_extras(glb, cl_state):
     tree = glb_json(glb)
     mats = {m["name"]: m for m in tree["materials"] if "name" in m}
     mesh_mat = {m["name"]: mats_by_index(tree, m) for m in tree["meshes"]}
@@ -111,7 +113,7 @@ def test_glb_colours_and_extras(glb):
     assert rgba["entry_lines"][1] > rgba["entry_lines"][0] + 0.4  # green
     assert rgba["exit_lines"][2] > rgba["exit_lines"][0] + 0.4  # blue
     extras = tree["scenes"][0]["extras"]["fusioncut"]
-    assert extras["cl_index"] == 2 and extras["status"] == "engaged" and extras["units"] == "mm"
+    assert extras["cl_index"] == cl_state.map.cl_index and extras["status"] == "engaged" and extras["units"] == "mm"
     assert extras["position_mm"] == list(TIP) and len(extras["view_direction"]) == 3
 
 
@@ -190,11 +192,11 @@ def test_page_is_self_contained(page, glb):
     assert "(20.000, 12.000, -3.000) mm" in text
 
 
-def test_page_from_a_glb_file(glb, tmp_path):
+def test_page_from_a_glb_file(glb, tmp_path, cl_state):
     three_or_skip()
     path = write_glb_bytes(glb, tmp_path / "s.glb")
     out = write_view_html(path, tmp_path / "s.html")
-    assert "<title>FusionCut — CL 2</title>" in out.read_text(encoding="utf-8")
+    assert f"<title>FusionCut — CL {cl_state.map.cl_index}</title>" in out.read_text(encoding="utf-8")
 
 
 def test_missing_three_js_says_how_to_install(glb, tmp_path, monkeypatch):

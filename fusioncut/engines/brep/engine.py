@@ -39,7 +39,7 @@ from fusioncut.engines.brep.occ import (
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import swept_volume
-from fusioncut.engines.segments import cl_segments, horizontal_direction
+from fusioncut.engines.segments import horizontal_direction, segments_for
 from fusioncut.errors import InputError
 from fusioncut.model.angles import immersion_from_machine
 from fusioncut.model.engagement import AngleInterval, CLStatus, EngagementMap, SliceEngagement
@@ -312,7 +312,7 @@ def cl_sequence(toolpath: Toolpath, options: EngineOptions, default_tool: Millin
                 start_at: int = 0) -> Iterator[tuple[int, Move, MillingTool, float]]:
     """(CL index, segment, tool, feed angle in degrees) of every CL segment from ``start_at`` on."""
     feed_angle = 0.0
-    for index, move in enumerate(cl_segments(toolpath.moves, options.max_segment_length, options.chord_tolerance)):
+    for index, move in enumerate(segments_for(toolpath.moves, options)):
         d = horizontal_direction(move)
         if d is not None:
             feed_angle = math.degrees(math.atan2(d[1], d[0])) % 360.0

@@ -39,7 +39,7 @@ from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, faces, shape_list, solids, unify, volume, write_brep, write_step, write_stl,
 )
 from fusioncut.engines.brep.sweep import placed_tool
-from fusioncut.engines.segments import cl_segments
+from fusioncut.engines.segments import segments_for
 from fusioncut.errors import FusionCutError, GeometryError, InputError
 from fusioncut.model.angles import machine_from_immersion
 from fusioncut.model.engagement import EngagementMap, SliceEngagement
@@ -339,7 +339,7 @@ class Replay:
 def check_cl_index(toolpath: Toolpath, cl_index: int, options: EngineOptions | None = None) -> list[Move]:
     """The CL segments of ``toolpath`` under ``options``; an :class:`InputError` unless CL ``cl_index`` is one."""
     options = options or EngineOptions()
-    segments = cl_segments(toolpath.moves, options.max_segment_length, options.chord_tolerance)
+    segments = segments_for(toolpath.moves, options)
     if not 0 <= cl_index < len(segments):
         raise InputError(f"CL {cl_index} is out of range: the toolpath has {len(segments)} CL segments "
                          f"(0..{len(segments) - 1})", toolpath.source)
@@ -352,7 +352,7 @@ def replay(toolpath: Toolpath, stock: Stock | TopoDS_Shape, cl_index: int, optio
     """Run the engine from ``stock`` through CL ``cl_index`` (inclusive) and stop there.
 
     CL indices are those of a run with the same ``options`` (the CL segments of
-    :func:`fusioncut.engines.segments.cl_segments`). ``on_cl(map, cl_index + 1)`` reports progress.
+    :func:`fusioncut.engines.segments.segments_for`). ``on_cl(map, cl_index + 1)`` reports progress.
     """
     options = options or EngineOptions()
     segments = check_cl_index(toolpath, cl_index, options)

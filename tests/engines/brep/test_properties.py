@@ -1,7 +1,6 @@
 """Invariants: translating the whole job changes nothing; every CL is accounted for; failures are kept."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import pytest
@@ -83,18 +82,3 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
     assert failed[0].cl_index < maps[-1].cl_index  # the run went on
     # what the later CLs removed still adds up
     assert STOCK.volume - eng.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-6)
-
-
-def test_helix_chords_stay_within_the_stated_tolerance():
-    helix = ArcMove((10, 0, 0), (10, 0, -3), center=(0, 0, 0), turns=1)
-    tol = 1e-3
-    segs = cl_segments([helix], None, tol)
-    assert len(segs) > 10
-    for s in segs:
-        for t in (0.0, 1.0):
-            p = s.point_at(t)
-            assert math.hypot(p[0], p[1]) == pytest.approx(10, abs=1e-9)  # chord ends on the helix
-        mid = s.point_at(0.5)
-        assert 10 - math.hypot(mid[0], mid[1]) <= tol + 1e-12
-    assert segs[-1].end == helix.end
-    assert sum(abs(s.end[2] - s.start[2]) for s in segs) == pytest.approx(3.0)

@@ -1,0 +1,50 @@
+"""A helical entry, the way adaptive programs start a pocket: closed-form volume, no CL lost.
+
+The tool's radius (6 mm) exceeds the helix's (4 mm), as in the Titan-like benchmark where OCCT's
+Booleans on oblique chord sweeps went silently wrong (0 mm³ removed by a chord that must remove
+>= 5.6 mm³, then 7,193 mm³ by a later one). After the helix and one flat circle at the bottom,
+the pocket is exactly a cylinder of radius r + R.
+"""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.brep.engine import BRepEngine
+from fusioncut.model import ArcMove, BoxStock, CLStatus, FlatEndMill, LinearMove, Toolpath
+
+R, RHO, PITCH, DEPTH = 6.0, 4.0, 2.0, 3.0
+STOCK = BoxStock((-20, -20, -10), (20, 20, 0))
+
+
+def helical_entry() -> Toolpath:
+    top = 0.5  # the helix starts in air, above the stock
+    start = (RHO, 0.0, top)
+    turns_z = top + DEPTH
+    moves = [LinearMove((RHO, 0.0, 5.0), start, feed=1000.0, tool=1)]
+    # 1.75 turns clockwise (G2) down to -DEPTH: one whole turn plus three quarters
+    moves.append(ArcMove(start, (0.0, RHO, -DEPTH), center=(0.0, 0.0, top), clockwise=True, turns=1,
+                         feed=800.0, tool=1))
+    # one flat turn at the bottom, in quarters, so the pocket's floor is flat
+    pts = [(0.0, RHO), (RHO, 0.0), (0.0, -RHO), (-RHO, 0.0), (0.0, RHO)]
+    for a, b in zip(pts, pts[1:]):
+        moves.append(ArcMove((*a, -DEPTH), (*b, -DEPTH), center=(0.0, 0.0, -DEPTH), clockwise=True,
+                             feed=800.0, tool=1))
+    assert turns_z / (1.75 * 2 * math.pi * RHO) < 0.2  # a ramp, as CAM posts them
+    return Toolpath(tuple(moves), {1: FlatEndMill(2 * R, 20.0, number=1)})
+
+
+def test_helical_entry_removes_the_closed_form_pocket():
+    engine = BRepEngine(EngineOptions(ramp_step=0.05))
+    maps = list(engine.run(helical_entry(), STOCK))
+    assert [m.status for m in maps if m.status == CLStatus.FAILED] == []
+    removed = sum(m.removed_volume for m in maps)
+    assert removed == pytest.approx(math.pi * (RHO + R) ** 2 * DEPTH, rel=1e-6)
+    assert STOCK.volume - engine.ipw_volume == pytest.approx(removed, rel=1e-9)
+    # every step below the stock top goes deeper over the whole tool's bottom disk
+    helix_steps = [m for m in maps if m.start[2] == m.position[2] and -DEPTH < m.position[2] < 0]
+    assert len(helix_steps) > 50
+    for m in helix_steps:
+        assert m.status == CLStatus.ENGAGED and m.removed_volume > 0
