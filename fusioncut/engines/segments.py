@@ -7,8 +7,9 @@ and every CL end lies exactly on the programmed path.
 * Arcs in the ZX / YZ planes become chords whose sagitta ``rho * (1 - cos(dtheta / 2))`` is at most
   ``chord_tolerance`` mm.
 * Feed moves that go down or up while moving sideways at a slope up to ``STAIRCASE_SLOPE`` (ramps,
-  helices, those chords) become a **staircase**: steps that each move horizontally (a line, or an XY arc for a helix) at the height
-  of the step's end. The step's sweep contains the short vertical move at its start, and every
+  helices, those chords) are cut into pieces on the path that the engine sweeps as a **staircase**:
+  each piece as the horizontal move (a line, or an XY arc for a helix) at the height of its end
+  (:func:`step_motion`). The step's sweep contains the short vertical move at its start, and every
   swept tool position lies within ``ramp_step`` mm of the programmed path (the corner of a step is
   ``dh * dz / L`` from the oblique line it replaces).
 
@@ -54,40 +55,52 @@ _EPS = 1e-9
 STAIRCASE_SLOPE = 0.2  # dz / dh
 
 
-def staircase(move: Move, ramp_step: float) -> list[Move]:
-    """Horizontal steps replacing an oblique feed move (a line or an XY helix), within ``ramp_step`` mm.
-
-    Step k moves from the path's point at t_k to the one at t_k+1, at the height of the latter;
-    other moves are returned as they are.
-    """
+def _oblique(move: Move) -> tuple[float, float] | None:
+    """(horizontal length, rise) of a feed move to be stepped, or None (lines, plunges, rapids, steep)."""
     if move.is_rapid:
-        return [move]
+        return None
     dz = move.end[2] - move.start[2]
     if isinstance(move, ArcMove):
         if move.plane != ArcPlane.XY or not move.is_helix:
-            return [move]
+            return None
         dh = abs(move.sweep) * max(move.radius, move.end_radius)
-        # a quarter turn at most per step keeps every XY arc sweep a simple one
-        n_min = math.ceil(abs(move.sweep) / (math.pi / 2) - 1e-12)
     else:
         dh = math.hypot(move.end[0] - move.start[0], move.end[1] - move.start[1])
-        n_min = 1
     if abs(dz) < _EPS or dh < _EPS or abs(dz) > STAIRCASE_SLOPE * dh:
+        return None
+    return dh, dz
+
+
+def staircase(move: Move, ramp_step: float) -> list[Move]:
+    """Pieces of an oblique feed move (a line or an XY helix) short enough to be swept as steps.
+
+    The pieces lie on the path; :func:`step_motion` gives the horizontal motion the engine sweeps
+    for each, which stays within ``ramp_step`` mm of the path. Other moves are returned as they are.
+    """
+    oblique = _oblique(move)
+    if oblique is None:
         return [move]
-    n = max(n_min, math.ceil(dh * abs(dz) / math.hypot(dh, dz) / ramp_step - 1e-12))
-    out: list[Move] = []
-    for k in range(n):
-        t0, t1 = k / n, (k + 1) / n
-        end = move.end if k + 1 == n else move.point_at(t1)
-        start = move.point_at(t0)
-        start = (start[0], start[1], end[2])
-        if isinstance(move, ArcMove):
-            piece = move.piece(t0, t1)
-            c = piece.center
-            out.append(replace(piece, start=start, end=end, center=(c[0], c[1], end[2])))
-        else:
-            out.append(replace(move, start=start, end=end))
-    return out
+    dh, dz = oblique
+    n = math.ceil(dh * abs(dz) / math.hypot(dh, dz) / ramp_step - 1e-12)
+    if isinstance(move, ArcMove):
+        # a quarter turn at most per step keeps every XY arc sweep a simple one
+        n = max(n, math.ceil(abs(move.sweep) / (math.pi / 2) - 1e-12))
+        return [move.piece(k / n, (k + 1) / n) for k in range(n)]
+    return [replace(move, start=move.point_at(k / n), end=move.end if k + 1 == n else move.point_at((k + 1) / n))
+            for k in range(max(1, n))]
+
+
+def step_motion(move: Move) -> Move:
+    """The motion swept for a CL segment: for a piece of a ramp or helix, the horizontal move at its
+    end's height (the vertical move at its start lies inside that sweep); any other move itself."""
+    if _oblique(move) is None:
+        return move
+    z = move.end[2]
+    start = (move.start[0], move.start[1], z)
+    if isinstance(move, ArcMove):
+        c = move.center
+        return replace(move, start=start, center=(c[0], c[1], z))
+    return replace(move, start=start)
 
 
 def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float | None = None,
@@ -116,4 +129,4 @@ def horizontal_direction(move: Move) -> tuple[float, float] | None:
     return (t[0] / h, t[1] / h)
 
 
-__all__ = ["chords", "cl_segments", "horizontal_direction", "segments_for", "staircase"]
+__all__ = ["chords", "cl_segments", "horizontal_direction", "segments_for", "staircase", "step_motion"]

@@ -48,7 +48,8 @@ shank_contact_area_mm2   float64   mm²      shank contact area (rubbing, not cu
 removed_volume_mm3       float64   mm³      material removed by the segment
 mrr_mm3_min              float64   mm³/min  removed volume / (length / feed); NaN for rapids, failed CLs,
                                             unknown feed or zero length
-sweep_method             string    -        how the swept volume was built
+sweep_method             string    -        exact, sampled, or step (a piece of a ramp or helix swept level at
+                                            its end height, within ramp_step)
 time_ms                  float64   ms       engine compute time of the CL (its "total" timing)  
 ======================== ========= ======== ================================================================
 
@@ -177,7 +178,8 @@ CL_COLUMNS: tuple[Column, ...] = (
     _c("removed_volume_mm3", "float64", "mm^3", "material removed by the segment"),
     _c("mrr_mm3_min", "float64", "mm^3/min",
        "removed volume / (length / feed); NaN for rapids, failed CLs, unknown feed or zero length"),
-    _c("sweep_method", "string", "", "how the swept volume was built"),
+    _c("sweep_method", "string", "", "how the swept volume was built: exact, step (ramp or helix piece swept level at its "
+       "end height, within ramp_step) or sampled"),
     _c("time_ms", "float64", "ms", "engine compute time of the CL"),
 )
 

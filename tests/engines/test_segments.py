@@ -1,4 +1,4 @@
-"""CL segments: ramps and helices become horizontal steps within ``ramp_step`` of the programmed path."""
+"""CL segments: ramps and helices are swept as horizontal steps within ``ramp_step`` of the path."""
 from __future__ import annotations
 
 import math
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fusioncut.engines.segments import STAIRCASE_SLOPE, cl_segments, staircase
+from fusioncut.engines.segments import STAIRCASE_SLOPE, cl_segments, staircase, step_motion
 from fusioncut.model import ArcMove, ArcPlane, LinearMove
 
 
@@ -18,14 +18,17 @@ def _distance_to_line(q, a, b) -> float:
     return math.dist(q, [a[i] + t * ab[i] for i in range(3)])
 
 
-def _check_chain(move, steps) -> None:
-    """Steps are horizontal, start where the last one ended (in XY) and end on the path."""
-    assert steps[-1].end == move.end
-    prev_xy = move.start[:2]
-    for s in steps:
-        assert s.start[2] == s.end[2]
-        assert s.start[:2] == pytest.approx(prev_xy, abs=1e-12)
-        prev_xy = s.end[:2]
+def _check_chain(move, pieces) -> list:
+    """Pieces follow each other along the path; their swept motions are level at the piece's end
+    height and start above or below the piece's start. Returns the motions."""
+    assert pieces[0].start == move.start and pieces[-1].end == move.end
+    for a, b in zip(pieces, pieces[1:]):
+        assert b.start == pytest.approx(a.end, abs=1e-12)
+    motions = [step_motion(p) for p in pieces]
+    for p, m in zip(pieces, motions):
+        assert m.start[2] == m.end[2] == p.end[2] and m.end == p.end
+        assert m.start[:2] == p.start[:2]
+    return motions
 
 
 @settings(max_examples=60, deadline=None)
@@ -35,8 +38,7 @@ def test_line_ramp_steps_stay_within_ramp_step(x, y, length, heading, slope, ste
     a = (x, y, -1.0)
     b = (x + length * math.cos(heading), y + length * math.sin(heading), -1.0 + slope * length)
     move = LinearMove(a, b, feed=500.0)
-    steps = staircase(move, step)
-    _check_chain(move, steps)
+    steps = _check_chain(move, staircase(move, step))
     for s in steps:
         assert _distance_to_line(s.end, a, b) < 1e-9  # every CL lies on the path
         for k in range(11):
@@ -53,8 +55,7 @@ def test_helix_steps_are_xy_arcs_within_ramp_step(radius, pitch, clockwise, turn
     if abs(rise) > STAIRCASE_SLOPE * abs(helix.sweep) * radius:
         assert staircase(helix, step) == [helix]  # steeper than a ramp: left to the oblique sweep
         return
-    steps = staircase(helix, step)
-    _check_chain(helix, steps)
+    steps = _check_chain(helix, staircase(helix, step))
     n = len(steps)
     for k, s in enumerate(steps):
         assert isinstance(s, ArcMove) and s.plane == ArcPlane.XY and not s.is_helix
@@ -75,18 +76,16 @@ def test_steep_moves_plunges_and_rapids_are_kept():
     rapid = LinearMove((0, 0, 50), (100, 80, -1), rapid=True)
     flat = LinearMove((0, 0, -1), (10, 0, -1), feed=500.0)
     for m in (steep, plunge, rapid, flat):
-        assert staircase(m, 0.01) == [m]
+        assert staircase(m, 0.01) == [m] and step_motion(m) is m
 
 
 def test_zx_arcs_become_chords_then_steps():
     arc = ArcMove((0, 0, 0), (20, 0, 0), center=(10, 0, 0), plane=ArcPlane.ZX, clockwise=True, feed=500.0)
     segs = cl_segments([arc], None, 1e-3, 0.01)
     assert segs[-1].end == arc.end
-    for s in segs:
-        dz = abs(s.end[2] - s.start[2])
-        dh = math.hypot(s.end[0] - s.start[0], s.end[1] - s.start[1])
-        assert dz == 0 or dz > STAIRCASE_SLOPE * dh  # either a step or a steep chord
-    # the chords' and the steps' deviations add up: every end still lies on the arc
-    for s in segs:
-        if s.start[2] == s.end[2] and s is not segs[-1]:
-            assert math.hypot(s.end[0] - 10, s.end[2]) <= 10 + 1e-3 + 1e-9
+    assert all(isinstance(s, LinearMove) for s in segs)
+    for s in segs:  # every CL ends on a chord, within chord_tolerance of the arc
+        assert math.hypot(s.end[0] - 10, s.end[2]) == pytest.approx(10, abs=1e-3 + 1e-9)
+    stepped = [s for s in segs if step_motion(s) is not s]
+    steep = [s for s in segs if step_motion(s) is s]
+    assert stepped and steep  # the flat top of the arc is stepped, its steep sides are chords

@@ -39,7 +39,7 @@ from fusioncut.engines.brep.occ import (
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import swept_volume
-from fusioncut.engines.segments import horizontal_direction, segments_for
+from fusioncut.engines.segments import horizontal_direction, segments_for, step_motion
 from fusioncut.errors import InputError
 from fusioncut.model.angles import immersion_from_machine
 from fusioncut.model.engagement import AngleInterval, CLStatus, EngagementMap, SliceEngagement
@@ -190,10 +190,15 @@ class BRepEngine:
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
         seam = math.radians(feed_angle) + math.pi  # seams behind the tool, away from the engaged side
+        # a piece of a ramp or helix is swept as a step (see fusioncut.engines.segments); the
+        # published method's sampled copies follow the move itself
+        motion = step_motion(move) if self.options.sweep == "exact" else move
         try:
-            sweep = swept_volume(tool, move, self.options.sweep, seam)
+            sweep = swept_volume(tool, motion, self.options.sweep, seam)
         except Exception as exc:  # noqa: BLE001 - kernel failures become a FAILED CL, never a crash
             return CutOutcome(CLStatus.FAILED, reason=f"sweep construction failed: {exc}", timings=timings), []
+        if motion is not move and sweep.method == "exact":
+            sweep = replace(sweep, method="step")
         t1 = time.perf_counter()
         timings["sweep"] = (t1 - t0) * 1e3
         idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR

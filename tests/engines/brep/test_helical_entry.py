@@ -44,7 +44,8 @@ def test_helical_entry_removes_the_closed_form_pocket():
     assert removed == pytest.approx(math.pi * (RHO + R) ** 2 * DEPTH, rel=1e-6)
     assert STOCK.volume - engine.ipw_volume == pytest.approx(removed, rel=1e-9)
     # every step below the stock top goes deeper over the whole tool's bottom disk
-    helix_steps = [m for m in maps if m.start[2] == m.position[2] and -DEPTH < m.position[2] < 0]
+    helix_steps = [m for m in maps if m.sweep_method == "step" and m.position[2] < 0]
     assert len(helix_steps) > 50
     for m in helix_steps:
+        assert m.start[2] > m.position[2]  # the CL is the piece of the helix, on the path
         assert m.status == CLStatus.ENGAGED and m.removed_volume > 0
