@@ -1,7 +1,6 @@
 """The fast paths give the whole-IPW engine's results: IPW cells, and cells split among Dask workers."""
 from __future__ import annotations
 
-import math
 
 import pytest
 
