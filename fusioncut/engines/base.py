@@ -17,18 +17,20 @@ class EngineOptions:
     """Knobs of a run (mm unless stated).
 
     ``slice_height``: axial slice spacing; slice k covers [k, k+1)*slice_height above the tip and is
-    evaluated in the middle of its part that touches material. ``max_segment_length``: longer moves are split into CL segments of at most
-    this length (None: as programmed). ``chord_tolerance``: ZX / YZ arcs become chords within
-    this distance of the path. ``ramp_step``: ramps and helices (feed moves going down or up while
-    moving sideways) become horizontal steps whose swept positions stay within this distance of the
-    path (see :mod:`fusioncut.engines.segments` for why the oblique sweep is not used). ``sweep``: "exact" or "sampled" (tool copies every R/4, the published
-    method). ``failure_dir``: where the shapes of a failed Boolean are saved as .brep.
+    evaluated in the middle of its part that touches material. ``max_segment_length``: longer moves
+    are split into CL segments of at most this length (None: as programmed). ``chord_tolerance``:
+    ZX / YZ arcs become chords within this distance of the path. ``ramp_step``: ramps and helices
+    up to a 1:5 slope are swept as level steps whose tool positions stay within this distance of
+    the path (:mod:`fusioncut.engines.segments` says why not the oblique sweep). ``sweep``: "exact"
+    or "sampled" (tool copies every R/4, the published method). ``failure_dir``: where the shapes of a failed Boolean are saved as .brep.
     ``merge_growth``: merge same-surface faces of a workpiece cell when its face count grew by this
     fraction since the last merge. ``cell_size``: the workpiece is kept as square columns of this
     size (mm) so that each Boolean touches a bounded piece (flat per-CL cost on long programs);
-    ``None`` (the default) keeps it whole. Cells give the whole workpiece's results on lines and
-    arcs (tested to 0.001° and 1e-6), but on helical entries the nearly tangent floors still make
-    cell Booleans disagree with the whole workpiece: until that is fixed, cells are opt-in.
+    ``None`` (the default) keeps it whole.
+    Cells give the whole workpiece's results on lines, arcs, trochoids and helical entries (tested to
+    0.001° and 1e-6; they need ``fuzzy=1e-6``: with 0, OCCT returned an empty Common where a sweep
+    face lay on a cell wall). They stay opt-in: on the Titan-like benchmark they were not faster than
+    the whole workpiece, and its second helical entry still failed the Common/Cut check in cells.
     """
 
     slice_height: float = 1.0

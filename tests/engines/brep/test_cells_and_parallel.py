@@ -69,6 +69,19 @@ def test_cells_equal_the_whole_workpiece(whole, cell_size):
                for s in m.slices)
 
 
+def test_cells_equal_the_whole_workpiece_on_a_helical_entry():
+    """The entry's steps leave a floor of many levels across the cells' walls (the oblique sweeps
+    this replaced made cell and whole-IPW Booleans disagree there)."""
+    from test_helical_entry import STOCK as BLOCK, helical_entry
+
+    runs = {}
+    for cell_size in (None, 10.0):
+        engine = BRepEngine(EngineOptions(ramp_step=0.05, cell_size=cell_size, fuzzy=1e-6))
+        runs[cell_size] = list(engine.run(helical_entry(), BLOCK))
+        conserved(engine)
+    assert_same(runs[10.0], runs[None])
+
+
 def test_cell_checkpoint_round_trip(tmp_path):
     engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=10.0, fuzzy=1e-6))
     engine.start(STOCK)
