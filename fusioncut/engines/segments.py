@@ -4,7 +4,7 @@ A CL segment is one motion the engine evaluates; the engagement is reported with
 and every CL end lies exactly on the programmed path.
 
 * Horizontal lines, XY arcs and vertical plunges are swept exactly.
-* Arcs in the ZX / YZ planes become chords whose sagitta ``rho * (1 - cos(dtheta / 2))`` is at most
+* Arcs in the ZX / YZ planes, and helices steeper than ``STAIRCASE_SLOPE``, become chords whose sagitta ``rho * (1 - cos(dtheta / 2))`` is at most
   ``chord_tolerance`` mm.
 * Feed moves that go down or up while moving sideways at a slope up to ``STAIRCASE_SLOPE`` (ramps,
   helices, those chords) are cut into pieces on the path that the engine sweeps as a **staircase**:
@@ -108,7 +108,9 @@ def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float 
     """The CL segments of ``moves``, in order; no move is dropped (a zero-length one stays a segment)."""
     out: list[Move] = []
     for m in moves:
-        pieces = chords(m, chord_tolerance) if isinstance(m, ArcMove) and m.plane != ArcPlane.XY else [m]
+        # ZX / YZ arcs, and helices too steep to be stepped, become chords first
+        curved = isinstance(m, ArcMove) and (m.plane != ArcPlane.XY or (m.is_helix and _oblique(m) is None))
+        pieces = chords(m, chord_tolerance) if curved else [m]
         for piece in pieces:
             for step in staircase(piece, ramp_step):
                 out += step.split(max_segment_length)

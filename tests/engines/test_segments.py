@@ -89,3 +89,14 @@ def test_zx_arcs_become_chords_then_steps():
     stepped = [s for s in segs if step_motion(s) is not s]
     steep = [s for s in segs if step_motion(s) is s]
     assert stepped and steep  # the flat top of the arc is stepped, its steep sides are chords
+
+
+def test_steep_helices_become_chords_on_the_helix():
+    # 0.2 mm down over a 0.4 mm arc: a 1:2 slope, too steep for steps (1055_utab posts such arcs)
+    helix = ArcMove((0.25, 0.0, 0.0), (0.0, 0.25, -0.2), center=(0.0, 0.0, 0.0), feed=500.0)
+    assert staircase(helix, 0.01) == [helix]
+    segs = cl_segments([helix], None, 1e-3, 0.01)
+    assert len(segs) > 1 and all(isinstance(s, LinearMove) for s in segs) and segs[-1].end == helix.end
+    for s in segs:
+        assert math.hypot(s.end[0], s.end[1]) == pytest.approx(0.25, abs=1e-9)
+        assert step_motion(s) is s  # steep chords keep the oblique sweep
