@@ -35,7 +35,7 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, children, compound, count_faces, faces, read_binary_brep, shape_list, solids,
-    split_into_cells, unify, volume, write_binary_brep, write_brep,
+    split_into_cells, unify, volume, volume_change, write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import swept_volume
@@ -285,7 +285,7 @@ class BRepEngine:
             if not cut.IsDone():
                 last = f"cut failed (fuzzy={fuzzy})"
                 continue
-            mismatch = ipw_volume - volume(cut.Shape()) - removed
+            mismatch = -volume_change(ipw, cut.Shape()) - removed
             # GProp's volume of a large, many-faced IPW is good to about 1e-7 of it, and fuzzy
             # noise stayed below 0.007 mm³; the wrong shapes seen were 2–600 mm³ off
             if abs(mismatch) > 0.01 + 0.05 * removed + 1e-6 * ipw_volume:

@@ -34,6 +34,34 @@ def volume(shape: TopoDS_Shape) -> float:
     return props.Mass()
 
 
+def volume_change(old: TopoDS_Shape, new: TopoDS_Shape) -> float:
+    """volume(new) - volume(old) (mm³) from the faces that differ between the two shapes only.
+
+    The divergence theorem makes a solid's volume a sum over its faces (GProp integrates each face
+    against one fixed point), so faces a Boolean left untouched cancel. A Cut reuses the faces it
+    did not split, so this integrates a few faces instead of a many-faced workpiece (58 of 370 ms
+    per CL went to the full volume on the benchmark's helical floors).
+    """
+    from OCP.TopExp import TopExp
+    from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
+
+    maps = []
+    for shape in (old, new):
+        m = ShapeMap()
+        TopExp.MapShapes_s(shape, TopAbs_FACE, m)
+        maps.append(m)
+
+    # the faces only the new shape has, and those only the old one had, reversed: together a closed
+    # surface, so its GProp integral does not depend on GProp's own reference point
+    picked = [f for f in faces(new) if not maps[0].Contains(f)]
+    picked += [f.Reversed() for f in faces(old) if not maps[1].Contains(f)]
+    if not picked:
+        return 0.0
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(compound(picked), props, False)
+    return props.Mass()
+
+
 def area(shape: TopoDS_Shape) -> float:
     props = GProp_GProps()
     BRepGProp.SurfaceProperties_s(shape, props)
