@@ -38,7 +38,7 @@ from fusioncut.model import BoxStock, CLStatus  # noqa: E402
 
 TINY = ProgramSize(slot_length=4.0, slots=1, depths=(-4.0,), finish_rows=1, contours=1)
 SEGMENT = dict(max_segment_length=2.0, chord_tolerance=0.01)
-OURS = dict(SEGMENT, cell_size=20.0, fuzzy=1e-6)  # cells need the 1 µm fuzzy (see EngineOptions)
+OURS = dict(SEGMENT, cell_size=20.0)
 
 
 def rss_mb() -> float:

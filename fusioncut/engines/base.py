@@ -22,15 +22,19 @@ class EngineOptions:
     ZX / YZ arcs become chords within this distance of the path. ``ramp_step``: ramps and helices
     up to a 1:5 slope are swept as level steps whose tool positions stay within this distance of
     the path (:mod:`fusioncut.engines.segments` says why not the oblique sweep). ``sweep``: "exact"
-    or "sampled" (tool copies every R/4, the published method). ``failure_dir``: where the shapes of a failed Boolean are saved as .brep.
-    ``merge_growth``: merge same-surface faces of a workpiece cell when its face count grew by this
-    fraction since the last merge. ``cell_size``: the workpiece is kept as square columns of this
-    size (mm) so that each Boolean touches a bounded piece (flat per-CL cost on long programs);
-    ``None`` (the default) keeps it whole.
-    Cells give the whole workpiece's results on lines, arcs, trochoids and helical entries (tested to
-    0.001° and 1e-6; they need ``fuzzy=1e-6``: with 0, OCCT returned an empty Common where a sweep
-    face lay on a cell wall). They stay opt-in: on the Titan-like benchmark they were not faster than
-    the whole workpiece, and its second helical entry still failed the Common/Cut check in cells.
+    or "sampled" (tool copies every R/4, the published method). ``failure_dir``: where the shapes of
+    a failed Boolean are saved as .brep. ``merge_growth``: merge same-surface faces of a workpiece
+    cell when its face count grew by this fraction since the last merge.
+
+    ``cell_size``: the workpiece is kept as square columns of this size (mm) so that each Boolean
+    touches a bounded piece; ``None`` (the default) keeps it whole. Cells give the whole workpiece's
+    results on lines, arcs, trochoids and helical entries (tested to 0.001° and 1e-6). They stay
+    opt-in: on the Titan-like benchmark they were not faster than the whole workpiece.
+
+    ``fuzzy``: the Booleans' fuzzy value (mm). ``None`` means 1e-6 with cells and 0 (exact) without:
+    cells need it (with 0, OCCT returned an empty Common where a sweep face lay on a cell wall), the
+    whole workpiece does better without (1e-6 leaked 1.3e-6 of the stock volume over 540 CLs of a
+    real program). ``fuzzy_retries``: the values a failed Boolean is retried with.
     """
 
     slice_height: float = 1.0
@@ -40,7 +44,7 @@ class EngineOptions:
     sweep: Literal["exact", "sampled"] = "exact"
     failure_dir: Path | None = None
     merge_growth: float = 0.5
-    fuzzy: float = 0.0
+    fuzzy: float | None = None
     fuzzy_retries: tuple[float, ...] = (1e-6, 1e-5, 1e-4)
     cell_size: float | None = None
 

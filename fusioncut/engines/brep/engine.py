@@ -260,7 +260,8 @@ class BRepEngine:
         """
         last = "unknown"
         sweep_volume = None  # only needed once something is removed
-        for fuzzy in (self.options.fuzzy, *self.options.fuzzy_retries):
+        first = self.options.fuzzy if self.options.fuzzy is not None else (1e-6 if self.options.cell_size else 0.0)
+        for fuzzy in (first, *self.options.fuzzy_retries):
             pf = BOPAlgo_PaveFiller()
             pf.SetArguments(shape_list([ipw, sweep]))
             if fuzzy:
