@@ -17,6 +17,11 @@ Shared by the CLI and the service so there is one implementation of a run:
 Ctrl-C stops cleanly after the CL in progress (a second Ctrl-C stops at once): rows are flushed,
 a checkpoint is written and the result says ``interrupted``. Per CL, the log records at DEBUG level
 the index, source ``file:line``, status, sweep method and timings (ms).
+
+The run options ``workers`` and ``scheduler`` run the CLs on Dask workers
+(:mod:`fusioncut.engines.brep.parallel`) with the same rows, checkpoints, snapshots and exports; a
+checkpoint of a parallel run resumes single-process and the other way round. The workers compute
+CLs in batches, so there Ctrl-C stops once the batch in progress is done.
 """
 from __future__ import annotations
 
@@ -44,8 +49,10 @@ from fusioncut.model import CLStatus, EngagementMap, MillingTool, Move, Stock, T
 log = logging.getLogger("fusioncut.run")
 
 CHECKPOINT_DIR = "checkpoint"
-RUN_STATE = "run.json"  # in the checkpoint folder: which job (hash, version) the engine state is of
+RUN_STATE = "run.json"  # in the checkpoint folder: which job (hash, version) the engine state is of,
+# and the cell size its workpiece was cut into
 DEFAULT_CHECKPOINT_EVERY = 200
+PARALLEL_CELL_SIZE = 20.0  # mm: the cells of a parallel run whose job gives no cell_size
 
 __all__ = [
     "OperationSummary", "PreparedJob", "RunPlan", "RunResult", "prepare_job", "read_toolpath", "run_job",
@@ -138,6 +145,8 @@ class PreparedJob:
     job_id: str
     checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY
     snapshot_cls: tuple[int, ...] = ()
+    workers: int = 1
+    scheduler: str | None = None
 
 
 # --------------------------------------------------------------------------------------------------
@@ -193,7 +202,8 @@ def prepare_job(job: Job, base: Path) -> PreparedJob:
         log.warning("stock inferred from the toolpath extents: %s .. %s", stock.minimum, stock.maximum)
     engine_opts = job.options.model_dump(exclude=set(RUN_OPTIONS))
     return PreparedJob(toolpath, stock, EngineOptions(**engine_opts), default_tool, job_hash(job, base),
-                       job.options.checkpoint_every, tuple(job.options.snapshot_cls))
+                       job.options.checkpoint_every, tuple(job.options.snapshot_cls), job.options.workers,
+                       job.options.scheduler)
 
 
 def _resolve_tools(moves: list[Move], job_tools: dict[int, MillingTool], library: Any,
@@ -243,7 +253,8 @@ def run_job(job: Job, base: Path, out_dir: Path, on_cl: Callable[[EngagementMap,
     ``resume``: continue from a checkpoint of the same job in ``out_dir`` (``False``: start over).
     ``on_cl(map, total)`` is called after each CL, once its row and any due checkpoint are written;
     ``on_start(plan)`` once before the first. ``export_ipw`` writes the final workpiece as
-    ``ipw.step`` and ``ipw.stl``. Input errors are raised before anything is written.
+    ``ipw.step`` and ``ipw.stl``. Input errors are raised before anything is written. The job's
+    ``workers`` / ``scheduler`` options run it in parallel (see :func:`run_toolpath`).
 
     To stop a run from outside (a service cancelling a job), raise ``KeyboardInterrupt`` in
     ``on_cl``: the run returns with ``interrupted=True`` and a checkpoint after that CL. Any other
@@ -253,25 +264,85 @@ def run_job(job: Job, base: Path, out_dir: Path, on_cl: Callable[[EngagementMap,
     options = replace(p.options, failure_dir=Path(out_dir) / "failures")
     return run_toolpath(p.toolpath, p.stock, out_dir, options, default_tool=p.default_tool, job_id=p.job_id,
                         on_cl=on_cl, resume=resume, checkpoint_every=p.checkpoint_every,
-                        snapshot_cls=p.snapshot_cls, export_ipw=export_ipw, on_start=on_start)
+                        snapshot_cls=p.snapshot_cls, export_ipw=export_ipw, on_start=on_start, workers=p.workers,
+                        scheduler=p.scheduler)
 
 
 def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: EngineOptions | None = None,
                  default_tool: MillingTool | None = None, job_id: str = "",
                  on_cl: Callable[[EngagementMap, int], None] | None = None, *, resume: bool = False,
                  checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY, snapshot_cls: Iterable[int] = (),
-                 export_ipw: bool = True, on_start: Callable[[RunPlan], None] | None = None) -> RunResult:
+                 export_ipw: bool = True, on_start: Callable[[RunPlan], None] | None = None,
+                 workers: int = 1, scheduler: str | None = None) -> RunResult:
     """Run every CL of ``toolpath`` on ``stock``, writing results into ``out_dir`` as they come.
 
     ``on_cl(map, total)`` is called after each CL (progress reporting). ``resume`` continues from a
     checkpoint in ``out_dir`` whose job hash is ``job_id``. ``checkpoint_every`` (CLs; 0: only at the
     end and on interruption), ``snapshot_cls`` (CL indices after which the IPW is written as
     ``ipw_cl<N>.step``) and ``export_ipw`` (``ipw.step`` and ``ipw.stl`` at the end).
+
+    ``workers`` > 1 runs the CLs on an embedded Dask cluster of that many worker processes,
+    ``scheduler`` on the workers of a running Dask scheduler (see
+    :mod:`fusioncut.engines.brep.parallel`); the cluster is closed when the run ends, however it ends.
     """
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
     options = options or EngineOptions()
-    engine = BRepEngine(options)
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    with _CtrlC() as ctrl_c:  # also over the cluster's start and close: Ctrl-C there only asks to stop
+        engine = _engine(options, workers, scheduler)
+        try:
+            result = _run(engine, ctrl_c, toolpath, stock, out_dir, default_tool, job_id, on_cl, resume,
+                          checkpoint_every, snapshot_cls, export_ipw, on_start)
+        finally:
+            if not isinstance(engine, BRepEngine):
+                engine.close()
+    result.seconds = time.perf_counter() - t0
+    return result
+
+
+def _engine(options: EngineOptions, workers: int, scheduler: str | None) -> Any:
+    """The engine for these run options: :class:`BRepEngine`, or the parallel one with its Dask
+    client open (an unreachable scheduler fails here, before anything is written). Both offer what
+    the runner uses: start, process, save/load_checkpoint, ipw, ipw_volume, stock_volume and
+    removed_total."""
+    if workers <= 1 and not scheduler:
+        return BRepEngine(options)
+    if _inside_dask_worker():
+        # a LocalCluster's worker processes cannot be started from a (daemonic) Dask worker, and a
+        # job the service runs already has its own worker: it stays single-process there
+        log.warning("running inside a Dask worker: the job runs single-process here (workers and scheduler "
+                    "ignored)")
+        return BRepEngine(options)
+    # imported here: distributed costs a second of start-up that a single-process run saves
+    from fusioncut.engines.brep.parallel import ParallelBRepEngine
+
+    if scheduler and workers > 1:
+        log.info("the cells are split among every worker of the scheduler at %s; workers=%d is ignored",
+                 scheduler, workers)
+    engine = ParallelBRepEngine(options, workers=workers, scheduler=scheduler)
+    engine.open()
+    return engine
+
+
+def _inside_dask_worker() -> bool:
+    try:
+        from distributed import get_worker
+    except ImportError:
+        return False
+    try:
+        get_worker()
+    except ValueError:
+        return False
+    return True
+
+
+def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir: Path,
+         default_tool: MillingTool | None, job_id: str, on_cl: Callable[[EngagementMap, int], None] | None,
+         resume: bool, checkpoint_every: int, snapshot_cls: Iterable[int], export_ipw: bool,
+         on_start: Callable[[RunPlan], None] | None) -> RunResult:
+    options = engine.options
     segments = segments_for(toolpath.moves, options)
     total = len(segments)
     expected: dict[str, int] = {}
@@ -281,11 +352,17 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
 
     start_at, kept_rows = (_resume_point(engine, out_dir, job_id, total) if resume else (0, []))
     if start_at == 0:
+        if not isinstance(engine, BRepEngine) and options.cell_size is None:
+            # the workers share the workpiece out by cells: without cells one worker would do it all
+            engine.options = replace(options, cell_size=PARALLEL_CELL_SIZE)
+            log.info("parallel run: the workpiece is kept as %g mm cells (the job gives no cell_size)",
+                     PARALLEL_CELL_SIZE)
         engine.start(stock)  # reads and checks a stock solid: still before anything is written
         _clear_previous_run(out_dir)
-        _write_run_state(ck_dir, job_id)
+        _write_run_state(ck_dir, job_id, engine.options.cell_size)
     else:
         log.warning("resuming from the checkpoint in %s at CL %d of %d", ck_dir, start_at, total)
+        _continue_with_checkpoint_cells(engine, ck_dir)
     ops: dict[str, OperationSummary] = {}
     for row in kept_rows:
         ops.setdefault(row["operation"], OperationSummary(row["operation"])).add_row(row)
@@ -314,46 +391,45 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
         engine.save_checkpoint(ck_dir, recorded + 1)
         checkpointed = recorded + 1
 
-    with _CtrlC() as ctrl_c:  # also over the final checkpoint and export: Ctrl-C there only asks to stop
-        with writer:
-            try:
-                maps = engine.process(toolpath, default_tool, start_at=start_at)
-                while True:
-                    in_engine = True
-                    m = next(maps, None)
-                    in_engine = False
-                    if m is None:
-                        break
-                    engine_state = m.cl_index
-                    writer.add(m, length_mm=segments[m.cl_index].length)
-                    recorded = m.cl_index
-                    ops.setdefault(m.operation, OperationSummary(m.operation)).add(m)
-                    _log_cl(m)
-                    if m.cl_index in snapshots:
-                        exported += _export(engine, [out_dir / f"ipw_cl{m.cl_index:06d}.step"])
-                    if checkpoint_every and (m.cl_index + 1) % checkpoint_every == 0 and m.cl_index + 1 < total:
-                        checkpoint()
-                    if on_cl:
-                        on_cl(m, total)
-                    if ctrl_c.requested:
-                        raise KeyboardInterrupt
-            except BaseException as exc:
-                interrupted = isinstance(exc, KeyboardInterrupt)
-                if not in_engine and engine_state == recorded:
-                    try:
-                        checkpoint()
-                    except Exception:  # noqa: BLE001 - keep the original error; the rows are flushed on exit
-                        log.exception("could not write a checkpoint")
-                if not interrupted:
-                    raise
-                log.warning("interrupted after CL %d: results kept in %s; the checkpoint is at CL %d, run again "
-                            "to resume", recorded, out_dir, checkpointed)
-        if not interrupted:
-            engine.save_checkpoint(ck_dir, total)  # the writer is closed: every row is on disk
-            if export_ipw:
-                exported += _export(engine, [out_dir / "ipw.step", out_dir / "ipw.stl"])
-    return RunResult(ops, engine.stock_volume, engine.ipw_volume, engine.removed_total,
-                     time.perf_counter() - t0, out_dir, interrupted, start_at, exported)
+    with writer:
+        try:
+            maps = engine.process(toolpath, default_tool, start_at=start_at)
+            while True:
+                in_engine = True
+                m = next(maps, None)
+                in_engine = False
+                if m is None:
+                    break
+                engine_state = m.cl_index
+                writer.add(m, length_mm=segments[m.cl_index].length)
+                recorded = m.cl_index
+                ops.setdefault(m.operation, OperationSummary(m.operation)).add(m)
+                _log_cl(m)
+                if m.cl_index in snapshots:
+                    exported += _export(engine, [out_dir / f"ipw_cl{m.cl_index:06d}.step"])
+                if checkpoint_every and (m.cl_index + 1) % checkpoint_every == 0 and m.cl_index + 1 < total:
+                    checkpoint()
+                if on_cl:
+                    on_cl(m, total)
+                if ctrl_c.requested:
+                    raise KeyboardInterrupt
+        except BaseException as exc:
+            interrupted = isinstance(exc, KeyboardInterrupt)
+            if not in_engine and engine_state == recorded:
+                try:
+                    checkpoint()
+                except Exception:  # noqa: BLE001 - keep the original error; the rows are flushed on exit
+                    log.exception("could not write a checkpoint")
+            if not interrupted:
+                raise
+            log.warning("interrupted after CL %d: results kept in %s; the checkpoint is at CL %d, run again "
+                        "to resume", recorded, out_dir, checkpointed)
+    if not interrupted:
+        engine.save_checkpoint(ck_dir, total)  # the writer is closed: every row is on disk
+        if export_ipw:
+            exported += _export(engine, [out_dir / "ipw.step", out_dir / "ipw.stl"])
+    return RunResult(ops, engine.stock_volume, engine.ipw_volume, engine.removed_total, 0.0, out_dir,
+                     interrupted, start_at, exported)
 
 
 def _tool_description(t: MillingTool) -> dict[str, Any]:
@@ -372,15 +448,20 @@ def _log_cl(m: EngagementMap) -> None:
                   m.status.value, m.sweep_method or "-", times)
 
 
-def _export(engine: BRepEngine, paths: list[Path]) -> list[Path]:
+def _export(engine: Any, paths: list[Path]) -> list[Path]:
     """Write the current IPW to each path (.step or .stl); a failure is logged, not raised, because
     the results are complete without it."""
     from fusioncut.engines.brep.export import export_ipw
 
     written = []
+    try:
+        ipw = engine.ipw  # once for all paths: a parallel engine fetches it from its workers
+    except Exception as e:  # noqa: BLE001 - as below: the results are complete without the files
+        log.error("could not get the workpiece to write %s: %s", ", ".join(p.name for p in paths), e)
+        return written
     for p in paths:
         try:
-            export_ipw(engine, p)  # joins the cells into one solid and keeps OCCT's output quiet
+            export_ipw(ipw, p)  # joins the cells into one solid and keeps OCCT's output quiet
             written.append(p)
         except Exception as e:  # noqa: BLE001 - OCP raises its own types; the run itself succeeded
             log.error("could not write %s: %s", p, e)
@@ -391,14 +472,37 @@ def _export(engine: BRepEngine, paths: list[Path]) -> list[Path]:
 # checkpoints
 
 
-def _write_run_state(ck_dir: Path, job_id: str) -> None:
+def _write_run_state(ck_dir: Path, job_id: str, cell_size: float | None) -> None:
     ck_dir.mkdir(parents=True, exist_ok=True)
     tmp = ck_dir / (RUN_STATE + ".tmp")
-    tmp.write_text(json.dumps({"job_hash": job_id, "fusioncut_version": __version__}))
+    tmp.write_text(json.dumps({"job_hash": job_id, "fusioncut_version": __version__, "cell_size": cell_size}))
     os.replace(tmp, ck_dir / RUN_STATE)
 
 
-def _resume_point(engine: BRepEngine, out_dir: Path, job_id: str, total: int) -> tuple[int, list[dict[str, Any]]]:
+def _continue_with_checkpoint_cells(engine: Any, ck_dir: Path) -> None:
+    """Give the engine the cell size of the run that wrote the checkpoint.
+
+    Its cells are what was loaded, whatever this run's options say: a parallel run without a job
+    ``cell_size`` cuts 20 mm cells, and a single-process run resuming it must treat them as cells
+    (the Booleans' fuzzy value depends on it); a parallel run resuming a whole workpiece has one cell.
+    """
+    try:
+        state = json.loads((ck_dir / RUN_STATE).read_text())
+    except (OSError, ValueError):
+        return
+    if "cell_size" not in state:
+        return
+    cell_size = state["cell_size"]
+    if cell_size is None and not isinstance(engine, BRepEngine):
+        log.warning("the checkpoint in %s keeps the workpiece whole, so one worker does all the work; --fresh "
+                    "starts over with cells shared out among the workers", ck_dir)
+    elif cell_size != engine.options.cell_size:
+        log.info("the checkpoint keeps the workpiece as %s; the run goes on with them",
+                 "one piece" if cell_size is None else f"{cell_size:g} mm cells")
+    engine.options = replace(engine.options, cell_size=cell_size)
+
+
+def _resume_point(engine: Any, out_dir: Path, job_id: str, total: int) -> tuple[int, list[dict[str, Any]]]:
     """(first CL to compute, kept ``cl`` rows) from a checkpoint in ``out_dir``; (0, []) to start over.
 
     Loads the engine state on success. The checkpoint must be of the same job hash and FusionCut

@@ -4,7 +4,9 @@ Both runs show one progress bar per operation (CLs done, CL/s, time left) and on
 program, write a log (``--log-file``, default ``<out>/fusioncut.log``; ``--log-level debug`` records
 every CL with its source ``file:line``, status, sweep method and timings) and, unless
 ``--no-ipw-export``, the final workpiece as ``ipw.step`` and ``ipw.stl`` in the results folder.
-``run`` resumes from the checkpoint of an interrupted run of the same job unless ``--fresh``.
+``run`` resumes from the checkpoint of an interrupted run of the same job unless ``--fresh``;
+``--workers N`` / ``--scheduler ADDRESS`` run it on Dask workers (same results, see
+:mod:`fusioncut.engines.brep.parallel`), and its checkpoint resumes with or without them.
 """
 from __future__ import annotations
 
@@ -146,6 +148,10 @@ def _print_summary(result) -> None:
 LOG_FILE_HELP = "log file (default: <out>/fusioncut.log)"
 LOG_LEVEL_HELP = "log file level; debug records every CL (source file:line, status, sweep method, timings)"
 IPW_HELP = "write the final workpiece as ipw.step and ipw.stl into the results folder"
+WORKERS_HELP = ("run on an embedded Dask cluster of N worker processes, each owning a block of the workpiece's "
+                "cells (20 mm cells unless the job sets cell_size); overrides the job's options.workers")
+SCHEDULER_HELP = ("run on every worker of a running Dask scheduler (e.g. tcp://host:8786); wins over "
+                  "--workers; overrides the job's options.scheduler")
 
 
 def register(app: typer.Typer) -> None:
@@ -178,12 +184,18 @@ def register(app: typer.Typer) -> None:
                                        help="start over, ignoring a checkpoint of an interrupted run"),
             log_file: Optional[Path] = typer.Option(None, help=LOG_FILE_HELP),
             log_level: LogLevel = typer.Option(LogLevel.info, case_sensitive=False, help=LOG_LEVEL_HELP),
-            ipw_export: bool = typer.Option(True, "--ipw-export/--no-ipw-export", help=IPW_HELP)) -> None:
+            ipw_export: bool = typer.Option(True, "--ipw-export/--no-ipw-export", help=IPW_HELP),
+            # a string: the job's validation refuses a bad count in one line, as in a job file
+            workers: Optional[str] = typer.Option(None, "--workers", metavar="N", help=WORKERS_HELP),
+            scheduler: Optional[str] = typer.Option(None, "--scheduler", metavar="ADDRESS",
+                                                    help=SCHEDULER_HELP)) -> None:
         """Run a job file; an interrupted run of the same job continues from its checkpoint."""
-        from fusioncut.io.job import load_job
+        from fusioncut.io.job import load_job, with_run_options
         from fusioncut.runner import run_job
 
         job, base = load_job(job_file)
+        # run options: they change neither the job hash nor the results, so a resume still matches
+        job = with_run_options(job, workers=workers, scheduler=scheduler)
         out = out or Path("fusioncut-out") / job.name
         # a resumed run appends to the log of the run it continues
         with _logging(log_file or out / "fusioncut.log", log_level, append=not fresh):

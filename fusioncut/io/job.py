@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fusioncut.errors import InputError
 from fusioncut.model.moves import Toolpath
@@ -93,8 +93,13 @@ class Options(_Strict):
     """Engine options (see :class:`fusioncut.engines.base.EngineOptions`; lengths mm) and run options.
 
     Run options do not change the results and are left out of the job hash: ``checkpoint_every``
-    (save a resumable checkpoint every that many CLs; 0: only when the run ends or is interrupted)
-    and ``snapshot_cls`` (write the workpiece as ``ipw_cl<N>.step`` after each of these CL indices).
+    (save a resumable checkpoint every that many CLs; 0: only when the run ends or is interrupted),
+    ``snapshot_cls`` (write the workpiece as ``ipw_cl<N>.step`` after each of these CL indices),
+    ``workers`` (split the workpiece's cells among that many Dask worker processes of an embedded
+    cluster) and ``scheduler`` (the address of a running Dask scheduler whose workers do it instead).
+    A parallel run keeps the workpiece as cells (20 mm unless ``cell_size`` says otherwise); its
+    results equal the single-process run's to 0.001° and 1e-6 of the volumes, and a checkpoint of
+    either resumes in the other.
     """
 
     slice_height: float = Field(1.0, gt=0)
@@ -105,11 +110,20 @@ class Options(_Strict):
     cell_size: float | None = Field(None, gt=0)
     checkpoint_every: int = Field(200, ge=0)
     snapshot_cls: list[Annotated[int, Field(ge=0)]] = []
+    workers: int = Field(1, ge=1)
+    scheduler: str | None = None
+
+    @field_validator("scheduler")
+    @classmethod
+    def _address(cls, value: str | None) -> str | None:
+        if value is not None and (not value.strip() or any(c.isspace() for c in value.strip())):
+            raise ValueError(f"{value!r} is not a Dask scheduler address (such as tcp://host:8786)")
+        return value.strip() if value is not None else None
 
 
 # Options that steer the run but not its results: excluded from the engine options and the job hash,
 # so changing them neither breaks a resume nor pretends the results differ.
-RUN_OPTIONS = frozenset({"checkpoint_every", "snapshot_cls"})
+RUN_OPTIONS = frozenset({"checkpoint_every", "snapshot_cls", "workers", "scheduler"})
 
 
 class Job(_Strict):
@@ -140,6 +154,28 @@ def load_job(path: str | Path) -> tuple[Job, Path]:
         first = exc.errors()[0]
         loc = ".".join(str(p) for p in first["loc"]) or "<root>"
         raise InputError(f"{loc}: {first['msg']} ({exc.error_count()} problem(s) in all)", path) from None
+
+
+def with_run_options(job: Job, **overrides: object) -> Job:
+    """``job`` with the run options given (``None``: keep the job file's), validated like the file.
+
+    The command line's ``--workers`` and ``--scheduler`` come through here, so a bad value is refused
+    with the same one-line message as in a job file (``model_copy`` alone would not validate it).
+    """
+    unknown = set(overrides) - RUN_OPTIONS
+    if unknown:
+        raise ValueError(f"not run options: {', '.join(sorted(unknown))}")
+    given = {k: v for k, v in overrides.items() if v is not None}
+    if not given:
+        return job
+    try:
+        options = Options.model_validate({**job.options.model_dump(), **given})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        name = ".".join(str(p) for p in first["loc"])
+        message = first["msg"].removeprefix("Value error, ")
+        raise InputError(f"--{name.replace('_', '-')}: {message}") from None
+    return job.model_copy(update={"options": options})
 
 
 def build_stock(spec: StockSpec, base: Path) -> Stock | None:

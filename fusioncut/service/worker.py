@@ -23,10 +23,13 @@ import socket
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fusioncut.errors import FusionCutError
 from fusioncut.service.files import CANCEL_FILE, INPUT_DIR, JOB_FILE, PROGRESS_FILE, RESULTS_DIR, SUSPEND_FILE
+
+if TYPE_CHECKING:
+    from fusioncut.io.job import Job
 
 log = logging.getLogger("fusioncut.service.worker")
 
@@ -154,6 +157,20 @@ def _make_plots(results_dir: Path) -> None:
         getattr(plots, fn)(results, out=results_dir / name)
 
 
+def single_process(job: Job) -> Job:
+    """``job`` without the run options ``workers`` and ``scheduler``.
+
+    A service job is already one Dask task with a worker process of its own: the service shares its
+    workers out by jobs, and a LocalCluster cannot be started inside a (daemonic) Dask worker. The
+    options change neither the job hash nor the results, so the job's checkpoints still resume.
+    """
+    if job.options.workers == 1 and job.options.scheduler is None:
+        return job
+    log.info("the service runs each job on one worker: options workers=%d, scheduler=%s ignored",
+             job.options.workers, job.options.scheduler)
+    return job.model_copy(update={"options": job.options.model_copy(update={"workers": 1, "scheduler": None})})
+
+
 def execute_job(job_dir: str, attempt: int = 1, progress_interval_s: float = 0.25) -> dict[str, Any]:
     """Run the job in ``job_dir``; returns ``{"state": done|cancelled|failed|suspended, "message", "done",
     "total"}`` (``suspended``: stopped by the suspend flag with a checkpoint, to be submitted again).
@@ -190,7 +207,7 @@ def execute_job(job_dir: str, attempt: int = 1, progress_interval_s: float = 0.2
         reporter.write("running")
         log.info("attempt %d on %s pid %d", attempt, socket.gethostname(), os.getpid())
         try:
-            job = Job.model_validate_json((inputs / JOB_FILE).read_text(encoding="utf-8"))
+            job = single_process(Job.model_validate_json((inputs / JOB_FILE).read_text(encoding="utf-8")))
             result = run_job(job, inputs, results_dir, on_cl=reporter, resume=True, on_start=reporter.on_start)
         except FusionCutError as exc:
             message = _relative(str(exc), inputs, results_dir)

@@ -2,7 +2,7 @@
 
 Cells are independent between the CLs they share, so each worker owns a contiguous block of cells
 (a Dask *actor* that keeps its B-Rep shapes in its own process) and runs every CL of the program
-against them; CLs whose sweep misses its cells cost one bounding-box test. Only floats cross
+against them; CLs whose sweep misses its cells cost one bounding-box test. Per CL only floats cross
 process boundaries. A CL is done in two phases per batch of CLs:
 
 1. every worker cuts the batch on its cells and reports removed volume, contact areas and the flute
@@ -16,43 +16,98 @@ equal the single-process engine's (sums may differ in the last bit by their orde
 when a Boolean fails on one worker's cells the others have already cut theirs; the CL is reported
 FAILED with the volume that was removed, so volume still adds up.
 
+The engine offers what :func:`fusioncut.runner.run_toolpath` uses of :class:`BRepEngine`: ``start``,
+``process`` (also from a resumed CL), ``save_checkpoint`` / ``load_checkpoint`` in the same files
+(so a checkpoint of either engine resumes in the other), ``ipw``, ``ipw_volume``. Shapes cross
+processes as binary BRep bytes, only when the workers are seeded and when the driver asks for the
+workpiece. Workers run a whole batch ahead of the CLs the driver has handed out, so they keep the
+state of their cells after every CL of the batch: a checkpoint, snapshot or Ctrl-C in the middle of
+a batch gets the workpiece as it was after the last CL handed out, never a later one.
+
 Dask distributed runs an embedded ``LocalCluster`` (worker processes, one thread each) unless a
-scheduler address is given.
+scheduler address is given; then the cells are split among all of that scheduler's workers.
 """
 from __future__ import annotations
 
+import io
+import logging
 import math
+import signal
+import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from OCP.BinTools import BinTools
+from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.contact import merge_arcs, slice_intervals
 from fusioncut.engines.brep.engine import (
-    BRepEngine, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights,
+    BRepEngine, Cell, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights,
 )
+from fusioncut.engines.brep.occ import children, compound, volume
+from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.moves import Toolpath
 from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool
 
+log = logging.getLogger("fusioncut.parallel")
+
+CONNECT_TIMEOUT_S = 10
+WORKERS_TIMEOUT_S = 60
+
+
+# -- cells as bytes ---------------------------------------------------------------------------------
+
+
+def pack_cells(cells: list[Cell]) -> tuple[bytes, list[int]]:
+    """Cells as the checkpoint writes them (one compound child per cell, an empty compound for a
+    cell cut away, binary BRep: doubles kept exactly) and their face counts at the last merge."""
+    stream = io.BytesIO()
+    BinTools.Write_s(compound(c.shape if c.shape is not None else compound([]) for c in cells), stream)
+    return stream.getvalue(), [c.faces_at_merge for c in cells]
+
+
+def unpack_cells(data: bytes, faces_at_merge: list[int]) -> list[Cell]:
+    """The cells of :func:`pack_cells`, rebuilt as :meth:`BRepEngine.load_checkpoint` rebuilds them."""
+    shape = TopoDS_Shape()
+    BinTools.Read_s(shape, io.BytesIO(data))
+    cells = []
+    for child, merged in zip(children(shape), faces_at_merge, strict=True):
+        cell = Cell(None, None, merged)
+        cell.set(child)
+        cells.append(cell)
+    return cells
+
+
+# -- the workers --------------------------------------------------------------------------------------
+
 
 class PartitionWorker:
-    """Dask actor: the cells ``cell_ids`` of the stock's cell grid and the program's CL sequence."""
+    """Dask actor: some cells of the IPW (as of CL ``position``) and the program's CL sequence."""
 
-    def __init__(self, stock: Stock, options: EngineOptions, cell_ids: list[int], toolpath: Toolpath,
-                 default_tool: MillingTool | None) -> None:
+    def __init__(self, cells: bytes, faces_at_merge: list[int], stock_volume: float, options: EngineOptions,
+                 toolpath: Toolpath, default_tool: MillingTool | None, position: int) -> None:
         self.engine = BRepEngine(options)
-        self.engine.start(stock)
-        self.engine.cells = [c for k, c in enumerate(self.engine.cells) if k in set(cell_ids)]
+        self.engine.cells = unpack_cells(cells, faces_at_merge)
+        # the whole stock's: the engine's "nothing removed" threshold is relative to it
+        self.engine.stock_volume = stock_volume
         self.sequence = list(cl_sequence(toolpath, options, default_tool))
         self.contacts: dict[int, list] = {}
-
-    def cells_volume(self) -> float:
-        return self.engine.ipw_volume
+        self.position = position  # the first CL these cells have not seen
+        self.history: dict[int, list[Cell]] = {}  # CL index -> the cells before that CL (this batch)
 
     def cut_batch(self, start: int, stop: int) -> list[CutOutcome]:
+        if start != self.position:
+            raise ValueError(f"the worker's cells are at CL {self.position}, not {start}")
         self.contacts.clear()
+        # copies of the cells' records, not of the shapes: a cut replaces a cell's shape, never edits it
+        self.history = {start: [replace(c) for c in self.engine.cells]}
         out = []
         for index, move, tool, feed_angle in self.sequence[start:stop]:
             try:
@@ -63,6 +118,8 @@ class PartitionWorker:
             if flute:
                 self.contacts[index] = flute
             out.append(outcome)
+            self.history[index + 1] = [replace(c) for c in self.engine.cells]
+        self.position = stop
         return out
 
     def slice_batch(self, heights: dict[int, list[float]]) -> dict[int, list[list[tuple[float, float]]] | str]:
@@ -79,6 +136,20 @@ class PartitionWorker:
                 out[index] = f"contact analysis failed: {exc}"
         return out
 
+    def _cells_at(self, next_cl: int) -> list[Cell]:
+        if next_cl == self.position:
+            return self.engine.cells
+        if next_cl in self.history:
+            return self.history[next_cl]
+        raise ValueError(f"the worker keeps its cells at CL {self.position} and within its last batch, not at {next_cl}")
+
+    def cells_at(self, next_cl: int) -> tuple[bytes, list[int]]:
+        """The cells before CL ``next_cl`` (see :func:`pack_cells`)."""
+        return pack_cells(self._cells_at(next_cl))
+
+    def volume_at(self, next_cl: int) -> float:
+        return sum(volume(c.shape) for c in self._cells_at(next_cl) if c.shape is not None)
+
 
 def cell_partition(n_cells: int, centres: list[tuple[float, float]], parts: int) -> list[list[int]]:
     """Contiguous blocks of cells along X (then Y), as equal in count as possible."""
@@ -87,9 +158,34 @@ def cell_partition(n_cells: int, centres: list[tuple[float, float]], parts: int)
     return [order[k:k + size] for k in range(0, n_cells, size)]
 
 
+@contextmanager
+def _children_ignore_ctrl_c() -> Iterator[None]:
+    """Worker processes started meanwhile ignore SIGINT (Python keeps an inherited SIG_IGN).
+
+    A terminal's Ctrl-C reaches the whole process group; the runner's first Ctrl-C asks for a clean
+    stop with a checkpoint, which needs the workers alive to hand over their cells.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is None:  # set outside Python: it could not be put back
+        yield
+        return
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+# -- the driver ---------------------------------------------------------------------------------------
+
+
 @dataclass
 class ParallelBRepEngine:
-    """The exact engine over Dask workers (see the module docstring). Use as a context manager."""
+    """The exact engine over Dask workers (see the module docstring). Use as a context manager, or
+    call :meth:`open` and :meth:`close`."""
 
     options: EngineOptions = field(default_factory=EngineOptions)
     workers: int = 2
@@ -97,37 +193,124 @@ class ParallelBRepEngine:
     batch: int = 200
     stock_volume: float = 0.0
     removed_total: float = 0.0
+    _client: Any = field(default=None, init=False, repr=False)
+    _cluster: Any = field(default=None, init=False, repr=False)
+    # the cells while no worker holds them; None while the workers do (or took them along on close)
+    _cells: list[Cell] | None = field(default_factory=list, init=False, repr=False)
+    _actors: list[Any] = field(default_factory=list, init=False, repr=False)
+    _parts: list[list[int]] = field(default_factory=list, init=False, repr=False)
+    _next: int = field(default=0, init=False, repr=False)  # the first CL the state does not include
 
     def __enter__(self) -> ParallelBRepEngine:
-        from distributed import Client, LocalCluster
-
-        if self.scheduler:
-            self._cluster = None
-            self._client = Client(self.scheduler)
-        else:
-            self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                         dashboard_address=None)
-            self._client = Client(self._cluster)
+        self.open()
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._client.close()
-        if self._cluster is not None:
-            self._cluster.close()
+        self.close()
 
-    def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
+    def open(self) -> None:
+        """Start the embedded cluster, or connect to the scheduler; an unreachable scheduler or one
+        without workers is an :class:`InputError` (the address is the user's)."""
+        if self._client is not None:
+            return
+        from distributed import Client, LocalCluster
+
+        if self.scheduler:
+            try:
+                self._client = Client(self.scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+            except (OSError, TimeoutError, ValueError, TypeError) as exc:
+                raise InputError(f"cannot reach the Dask scheduler at {self.scheduler}: {exc}") from None
+            try:
+                self._client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
+            except (OSError, TimeoutError) as exc:
+                self.close()
+                raise InputError(f"the Dask scheduler at {self.scheduler} has no workers "
+                                 f"(waited {WORKERS_TIMEOUT_S} s)") from exc
+            log.info("connected to the Dask scheduler at %s (%d workers)", self.scheduler,
+                     len(self._client.scheduler_info()["workers"]))
+            return
+        with _children_ignore_ctrl_c():
+            self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
+                                         dashboard_address=":0", silence_logs=logging.ERROR)
+        try:
+            self._client = Client(self._cluster)
+        except BaseException:
+            self._cluster.close()
+            self._cluster = None
+            raise
+        log.info("started a Dask cluster of %d worker processes (dashboard %s)", self.workers,
+                 self._client.dashboard_link)
+
+    def close(self) -> None:
+        """Close the client (and the embedded cluster). The workers' cells go with them: ask for
+        ``ipw`` or ``ipw_volume`` before."""
+        self._drop_actors()
+        client, cluster = self._client, self._cluster
+        self._client = self._cluster = None
+        # a failure to close must not hide how the run ended (this runs on errors and Ctrl-C too)
+        for what in (client, cluster):
+            if what is None:
+                continue
+            try:
+                what.close()
+            except Exception:  # noqa: BLE001 - nothing is left to do with it
+                log.warning("closing the Dask %s failed", type(what).__name__, exc_info=True)
+
+    # -- the engine interface of the runner -----------------------------------------------------------
+    def start(self, stock: Stock | TopoDS_Shape) -> None:
+        """Cut the stock into cells here (the runner checks the stock before writing anything)."""
         whole = BRepEngine(self.options)
         whole.start(stock)
-        self.stock_volume = whole.stock_volume
-        centres = [((c.box[0][0] + c.box[1][0]) / 2, (c.box[0][1] + c.box[1][1]) / 2) for c in whole.cells]
-        worker_addresses = list(self._client.scheduler_info()["workers"])
-        parts = cell_partition(len(whole.cells), centres, max(1, len(worker_addresses)))
-        actors = [self._client.submit(PartitionWorker, stock, self.options, ids, toolpath, default_tool,
-                                      actor=True, workers=[worker_addresses[k % len(worker_addresses)]]).result()
-                  for k, ids in enumerate(parts)]
-        self._actors = actors
+        self._drop_actors()
+        self.stock_volume, self.removed_total = whole.stock_volume, 0.0
+        self._cells, self._next = whole.cells, 0
+
+    def load_checkpoint(self, folder: Path) -> int | None:
+        """Restore a checkpoint of either engine; the next CL index, or None if none."""
+        whole = BRepEngine(self.options)
+        next_cl = whole.load_checkpoint(folder)
+        if next_cl is None:
+            return None
+        self._drop_actors()
+        self.stock_volume, self.removed_total = whole.stock_volume, whole.removed_total
+        self._cells, self._next = whole.cells, next_cl
+        return next_cl
+
+    def save_checkpoint(self, folder: Path, next_cl: int) -> None:
+        """:meth:`BRepEngine.save_checkpoint` of the workpiece after the last CL handed out."""
+        if next_cl != self._next:
+            raise ValueError(f"the engine state is at CL {self._next}, a checkpoint at CL {next_cl} would lie")
+        BRepEngine(self.options, self._gather(), self.stock_volume, self.removed_total).save_checkpoint(folder, next_cl)
+
+    @property
+    def ipw(self) -> TopoDS_Shape:
+        """The whole workpiece after the last CL handed out (a compound of the cells' solids)."""
+        return BRepEngine(self.options, self._gather()).ipw
+
+    @property
+    def ipw_volume(self) -> float:
+        if not self._actors:
+            return sum(volume(c.shape) for c in self._gather() if c.shape is not None)
+        return sum(f.result() for f in [a.volume_at(self._next) for a in self._actors])
+
+    @property
+    def cells(self) -> list[Cell]:
+        return self._gather()
+
+    def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
+        self.start(stock)
+        yield from self.process(toolpath, default_tool)
+
+    def process(self, toolpath: Toolpath, default_tool: MillingTool | None = None,
+                start_at: int = 0) -> Iterator[EngagementMap]:
+        """Run the CL segments of ``toolpath`` from CL ``start_at`` on the current workpiece (from
+        :meth:`start` or :meth:`load_checkpoint`), as :meth:`BRepEngine.process` does."""
         sequence = list(cl_sequence(toolpath, self.options, default_tool))
-        for start in range(0, len(sequence), self.batch):
+        if start_at >= len(sequence):
+            return
+        self._seed(toolpath, default_tool, start_at)
+        actors = self._actors
+        for start in range(start_at, len(sequence), self.batch):
             stop = min(len(sequence), start + self.batch)
             t0 = time.perf_counter()
             per_worker = [f.result() for f in [a.cut_batch(start, stop) for a in actors]]
@@ -157,8 +340,47 @@ class ParallelBRepEngine:
                 arcs = [next(merged_arcs) if active else [] for _, active in plan]
                 outcome.timings["total"] = wall  # the batch's wall time shared out over its CLs
                 self.removed_total += outcome.removed
+                # before the yield: whoever gets this CL sees the workpiece after it
+                self._next = index + 1
                 yield engagement_map(cl_base(index, move, tool, feed_angle), tool, move, outcome, plan, arcs)
 
-    @property
-    def ipw_volume(self) -> float:
-        return sum(a.cells_volume().result() for a in self._actors)
+    # -- internals --------------------------------------------------------------------------------------
+    def _seed(self, toolpath: Toolpath, default_tool: MillingTool | None, start_at: int) -> None:
+        """Give each worker its block of the current cells, as of CL ``start_at``."""
+        if self._client is None:
+            self.open()
+        cells = self._gather()
+        self._drop_actors()
+        self._next = start_at
+        centres = [((c.box[0][0] + c.box[1][0]) / 2, (c.box[0][1] + c.box[1][1]) / 2) if c.box else (0.0, 0.0)
+                   for c in cells]
+        addresses = sorted(self._client.scheduler_info()["workers"])
+        parts = cell_partition(len(cells), centres, max(1, len(addresses)))
+        futures = [self._client.submit(PartitionWorker, *pack_cells([cells[i] for i in ids]), self.stock_volume,
+                                       self.options, toolpath, default_tool, start_at, actor=True,
+                                       workers=[addresses[k % len(addresses)]], allow_other_workers=False)
+                   for k, ids in enumerate(parts)]
+        self._actors = [f.result() for f in futures]
+        self._parts = parts
+        self._cells = None
+        if len(parts) < len(addresses):
+            log.info("%d workpiece cells for %d workers: %d of them get cells", len(cells), len(addresses), len(parts))
+
+    def _gather(self) -> list[Cell]:
+        """The cells after the last CL handed out, in cell order (fetched from the workers)."""
+        if not self._actors:
+            if self._cells is None:
+                raise RuntimeError("the workers that held the workpiece are closed")
+            return self._cells
+        cells: list[Cell | None] = [None] * sum(len(ids) for ids in self._parts)
+        answers = [f.result() for f in [a.cells_at(self._next) for a in self._actors]]
+        for ids, (data, merged) in zip(self._parts, answers):
+            for i, cell in zip(ids, unpack_cells(data, merged), strict=True):
+                cells[i] = cell
+        return cells  # type: ignore[return-value]
+
+    def _drop_actors(self) -> None:
+        """Forget the workers' cells (Dask ends an actor once no future refers to it)."""
+        if self._actors:
+            self._cells = None
+        self._actors, self._parts = [], []
