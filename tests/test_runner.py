@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from fusioncut.engines.segments import cl_segments
+from fusioncut.engines.segments import segments_for
 from fusioncut.errors import FusionCutError, InputError, ToolDefinitionError
 from fusioncut.io.job import Job, Options, StockSpec, ToolSpec
 from fusioncut.io.results import load_results
@@ -393,7 +393,7 @@ def test_fusion_program_tool_comes_from_the_post_comment():
 def test_fusion_program_first_cls_end_to_end(tmp_path):
     p = prepare_job(*fusion_job())
     moves = p.toolpath.moves[:150]
-    n = len(cl_segments(moves, p.options.max_segment_length, p.options.chord_tolerance))
+    n = len(segments_for(moves, p.options))
     assert n >= 150
     tp = replace(p.toolpath, moves=moves)
     r = run_toolpath(tp, p.stock, tmp_path / "out", p.options, default_tool=p.default_tool, job_id=p.job_id,
@@ -411,7 +411,7 @@ def test_fusion_program_whole_run(tmp_path):
     out = tmp_path / "out"
     r = run_job(job, base, out)
     p = prepare_job(job, base)
-    n = len(cl_segments(p.toolpath.moves, p.options.max_segment_length, p.options.chord_tolerance))
+    n = len(segments_for(p.toolpath.moves, p.options))
     cl = check_complete_run(out, n, r)
     assert set(cl["operation"]) == {"2D Adaptive2", "2D Contour2", "2D Contour3"}
     assert (out / "ipw.step").stat().st_size > 0 and (out / "ipw.stl").stat().st_size > 84

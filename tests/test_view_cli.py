@@ -13,7 +13,7 @@ from fusioncut.cli.view import load_inputs
 from fusioncut.engines.brep.export import replay
 from fusioncut.engines.brep.occ import volume
 from fusioncut.engines.brep.stock import stock_solid
-from fusioncut.engines.segments import cl_segments
+from fusioncut.engines.segments import segments_for
 from fusioncut.model.stock import SolidStock
 from fusioncut.viz.scene import glb_json
 
@@ -67,7 +67,7 @@ def job(tmp_path_factory):
 def slot_end(job) -> int:
     """CL index of the end of the slot (the tool at X20 Y12 Z-3)."""
     toolpath, _, options, _, _ = load_inputs(str(job))
-    ends = [m.end for m in cl_segments(toolpath.moves, options.max_segment_length, options.chord_tolerance)]
+    ends = [m.end for m in segments_for(toolpath.moves, options)]
     return ends.index((20.0, 12.0, -3.0))
 
 
