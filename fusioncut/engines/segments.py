@@ -1,11 +1,11 @@
 """Cutting a toolpath into CL segments (pure geometry, no kernel).
 
 A CL segment is one motion the engine evaluates; the engagement is reported with the tool at its end,
-and every CL end lies exactly on the programmed path.
+which lies on the programmed path (on a chord, within ``chord_tolerance``, for the arcs below).
 
 * Horizontal lines, XY arcs and vertical plunges are swept exactly.
-* Arcs in the ZX / YZ planes, and helices steeper than ``STAIRCASE_SLOPE``, become chords whose sagitta ``rho * (1 - cos(dtheta / 2))`` is at most
-  ``chord_tolerance`` mm.
+* Arcs in the ZX / YZ planes, and helices steeper than ``STAIRCASE_SLOPE``, become chords whose
+  sagitta ``rho * (1 - cos(dtheta / 2))`` is at most ``chord_tolerance`` mm.
 * Feed moves that go down or up while moving sideways at a slope up to ``STAIRCASE_SLOPE`` (ramps,
   helices, those chords) are cut into pieces on the path that the engine sweeps as a **staircase**:
   each piece as the horizontal move (a line, or an XY arc for a helix) at the height of its end
