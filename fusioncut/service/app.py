@@ -322,27 +322,20 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
     def _sse(event: str, data: Any) -> str:
         return f"event: {event}\ndata: {json.dumps(data, separators=(',', ':'))}\n\n"
 
-    @app.get("/api/jobs/{job_id}/events", tags=["jobs"], responses={
-        **PROBLEMS, 200: {"content": {"text/event-stream": {}},
-                          "description": "`status` events (a JobStatus as JSON) whenever it changes, then `end`"}})
-    async def job_events(job_id: str, request: Request, who: str = Depends(owner)) -> StreamingResponse:
-        """Server-sent events with live progress of one job; the stream ends when the job does."""
-        lookup(job_id, who)
+    def _event_stream(request: Request, poll) -> StreamingResponse:  # type: ignore[no-untyped-def]
+        """An SSE response that calls ``poll()`` -> (events, finished) every poll interval, with a
+        comment line after 15 s without events so that proxies keep the connection open."""
 
         async def stream():  # type: ignore[no-untyped-def]
             yield "retry: 2000\n\n"
-            last, idle = None, 0.0
+            idle = 0.0
             while not service.stopping:
-                rec = service.store.get(job_id, owner=who) if service.store else None
-                if rec is None:
-                    yield _sse("deleted", {"id": job_id})
-                    return
-                now = status_of(rec).model_dump()
-                if now != last:
-                    yield _sse("status", now)
-                    last, idle = now, 0.0
-                if rec.state in FINAL_STATES:
-                    yield _sse("end", {"id": job_id, "state": rec.state})
+                events, finished = poll()
+                for event in events:
+                    yield event
+                if events:
+                    idle = 0.0
+                if finished:
                     return
                 if idle >= 15:
                     yield ": keep-alive\n\n"
@@ -354,6 +347,29 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
 
         return StreamingResponse(stream(), media_type="text/event-stream",
                                  headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+
+    @app.get("/api/jobs/{job_id}/events", tags=["jobs"], responses={
+        **PROBLEMS, 200: {"content": {"text/event-stream": {}},
+                          "description": "`status` events (a JobStatus as JSON) whenever it changes, then `end`"}})
+    async def job_events(job_id: str, request: Request, who: str = Depends(owner)) -> StreamingResponse:
+        """Server-sent events with live progress of one job; the stream ends when the job does."""
+        lookup(job_id, who)
+        last: list[Any] = [None]
+
+        def poll() -> tuple[list[str], bool]:
+            rec = service.store.get(job_id, owner=who) if service.store else None
+            if rec is None:
+                return [_sse("deleted", {"id": job_id})], True
+            events = []
+            now = status_of(rec).model_dump()
+            if now != last[0]:
+                events.append(_sse("status", now))
+                last[0] = now
+            if rec.state in FINAL_STATES:
+                return events + [_sse("end", {"id": job_id, "state": rec.state})], True
+            return events, False
+
+        return _event_stream(request, poll)
 
     @app.get("/api/events", tags=["jobs"], responses={
         **PROBLEMS, 200: {"content": {"text/event-stream": {}},
@@ -361,34 +377,23 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
                                          "`deleted` events ({id}) for jobs that went away"}})
     async def all_events(request: Request, who: str = Depends(owner)) -> StreamingResponse:
         """Server-sent events for all jobs of this key (one connection for the whole job list)."""
+        last: dict[str, Any] = {}
 
-        async def stream():  # type: ignore[no-untyped-def]
-            yield "retry: 2000\n\n"
-            last: dict[str, Any] = {}
-            idle = 0.0
-            while not service.stopping:
-                recs = service.store.list(owner=who) if service.store else []
-                seen = set()
-                for rec in recs:
-                    seen.add(rec.id)
-                    now = status_of(rec).model_dump()
-                    if last.get(rec.id) != now:
-                        last[rec.id] = now
-                        yield _sse("job", now)
-                        idle = 0.0
-                for gone in set(last) - seen:
-                    del last[gone]
-                    yield _sse("deleted", {"id": gone})
-                if idle >= 15:
-                    yield ": keep-alive\n\n"
-                    idle = 0.0
-                if await request.is_disconnected():
-                    return
-                await asyncio.sleep(settings.poll_interval_s)
-                idle += settings.poll_interval_s
+        def poll() -> tuple[list[str], bool]:
+            events = []
+            seen = set()
+            for rec in service.store.list(owner=who) if service.store else []:
+                seen.add(rec.id)
+                now = status_of(rec).model_dump()
+                if last.get(rec.id) != now:
+                    last[rec.id] = now
+                    events.append(_sse("job", now))
+            for gone in set(last) - seen:
+                del last[gone]
+                events.append(_sse("deleted", {"id": gone}))
+            return events, False
 
-        return StreamingResponse(stream(), media_type="text/event-stream",
-                                 headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+        return _event_stream(request, poll)
 
     # -- results --------------------------------------------------------------------------------
     @app.get("/api/jobs/{job_id}/files", response_model=FileList, tags=["results"], responses=PROBLEMS)
