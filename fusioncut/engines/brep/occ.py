@@ -16,9 +16,10 @@ from OCP.GProp import GProp_GProps
 from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.TopAbs import TopAbs_FACE, TopAbs_SOLID
-from OCP.TopExp import TopExp_Explorer
+from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
+from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 from OCP.collections import List_TopoDS_Shape
 
 Vec3 = tuple[float, float, float]
@@ -42,9 +43,6 @@ def volume_change(old: TopoDS_Shape, new: TopoDS_Shape) -> float:
     did not split, so this integrates a few faces instead of a many-faced workpiece (58 of 370 ms
     per CL went to the full volume on the benchmark's helical floors).
     """
-    from OCP.TopExp import TopExp
-    from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
-
     maps = []
     for shape in (old, new):
         m = ShapeMap()
