@@ -21,7 +21,7 @@ class EngineOptions:
     are split into CL segments of at most this length (None: as programmed). ``chord_tolerance``:
     ZX / YZ arcs become chords within this distance of the path. ``ramp_step``: ramps and helices
     up to a 1:5 slope are swept as level steps whose tool positions stay within this distance of
-    the path (:mod:`fusioncut.engines.segments` says why not the oblique sweep). ``sweep``: "exact"
+    the path (:mod:`fusioncut.engines.segments` says why not the oblique sweep, and why not finer). ``sweep``: "exact"
     or "sampled" (tool copies every R/4, the published method). ``failure_dir``: where the shapes of
     a failed Boolean are saved as .brep. ``merge_growth``: merge same-surface faces of a workpiece
     cell when its face count grew by this fraction since the last merge.
@@ -40,7 +40,7 @@ class EngineOptions:
     slice_height: float = 1.0
     max_segment_length: float | None = None
     chord_tolerance: float = 1e-3
-    ramp_step: float = 1e-2
+    ramp_step: float = 5e-2
     sweep: Literal["exact", "sampled"] = "exact"
     failure_dir: Path | None = None
     merge_growth: float = 0.5

@@ -19,7 +19,14 @@ in the workpiece, such faces meet the next tool cylinders nearly tangentially an
 then go silently wrong: on a helical entry (Titan-like benchmark) a chord removed 0 mm³ instead of
 >= 5.6 mm³, a plain cylinder probe at the next CL also gave 0, and a later chord "removed" the whole
 7,193 mm³ sweep, with no error from the kernel at any fuzzy value. Steps leave only planes and
-cylinders, on which the Booleans are as robust as on lines. Rapids and steeper moves keep the exact
+cylinders, on which the Booleans are as robust as on lines.
+
+Why steps of 0.05 mm, not finer: the wall between two steps is the tool's cylinder at each step's end,
+so neighbouring walls are equal cylinders ``d = ramp_step * L / |dz|`` apart, meeting at about
+``d / R`` rad. At 0.01 mm (a 12 mm tool on the benchmark's 4 mm helix: d = 0.11 mm, 1°) a later
+level cut through those walls gave a Cut with an extra zero-volume solid, then wrong Booleans by
+thousands of mm³, or a Common and Cut 12 mm³ apart; at 0.05 mm (5°) the same program ran clean from
+every stock height tried, with a fifth of the faces. Rapids and steeper moves keep the exact
 oblique sweep (a staircase of a long diagonal rapid would be thousands of steps through air).
 """
 from __future__ import annotations
@@ -104,7 +111,7 @@ def step_motion(move: Move) -> Move:
 
 
 def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float | None = None,
-                chord_tolerance: float = 1e-3, ramp_step: float = 1e-2) -> list[Move]:
+                chord_tolerance: float = 1e-3, ramp_step: float = 5e-2) -> list[Move]:
     """The CL segments of ``moves``, in order; no move is dropped (a zero-length one stays a segment)."""
     out: list[Move] = []
     for m in moves:

@@ -105,7 +105,7 @@ class Options(_Strict):
     slice_height: float = Field(1.0, gt=0)
     max_segment_length: float | None = Field(None, gt=0)
     chord_tolerance: float = Field(1e-3, gt=0)
-    ramp_step: float = Field(1e-2, gt=0)
+    ramp_step: float = Field(5e-2, gt=0)
     sweep: Literal["exact", "sampled"] = "exact"
     cell_size: float | None = Field(None, gt=0)
     checkpoint_every: int = Field(200, ge=0)

@@ -34,8 +34,8 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, children, compound, count_faces, faces, read_binary_brep, shape_list, solids,
-    split_into_cells, unify, volume, volume_change, write_binary_brep, write_brep,
+    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, read_binary_brep, shape_list, solids,
+    split_into_cells, unify, volume, volume_change, without_slivers, write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import swept_volume
@@ -229,13 +229,12 @@ class BRepEngine:
         try:
             candidates = []
             sweep_faces = list(faces(sweep.shape))
-            for _, _, _, cut in results:
+            for _, _, new_shape, cut in results:
+                kept = None if new_shape.IsSame(cut.Shape()) else face_map(new_shape)  # slivers dropped
                 for f in sweep_faces:
                     images = cut.Modified(f)
-                    if images.Size():
-                        candidates.extend(TopoDS.Face(s) for s in images)
-                    elif not cut.IsDeleted(f):
-                        candidates.append(f)
+                    found = [TopoDS.Face(s) for s in images] if images.Size() else [] if cut.IsDeleted(f) else [f]
+                    candidates.extend(g for g in found if kept is None or kept.Contains(g))
             contacts = find_contact_faces(candidates, tool, move.end)
             flute = [c for c in contacts if c.surface.zone == "flute"]
             outcome.flute_area = sum(c.area for c in flute)
@@ -292,7 +291,7 @@ class BRepEngine:
             if abs(mismatch) > 0.01 + 0.05 * removed + 1e-6 * ipw_volume:
                 last = f"cut and common disagree by {mismatch:.4g} mm³ (fuzzy={fuzzy})"
                 continue
-            return removed, cut.Shape(), cut
+            return removed, without_slivers(ipw, cut.Shape()), cut
         raise BooleanFailure(last)
 
     def _maybe_merge(self, cell: Cell) -> None:

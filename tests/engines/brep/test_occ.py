@@ -1,0 +1,49 @@
+"""Kernel helpers: the incremental volume and the sliver filter behind the Common/Cut check."""
+from __future__ import annotations
+
+import pytest
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+from OCP.BRep import BRep_Builder
+from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
+from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+from OCP.TopoDS import TopoDS_Shell, TopoDS_Solid
+
+from fusioncut.engines.brep.occ import compound, faces, solids, volume, volume_change, without_slivers
+
+
+def box(x0, y0, z0, dx, dy, dz):
+    return BRepPrimAPI_MakeBox(gp_Pnt(x0, y0, z0), dx, dy, dz).Shape()
+
+
+def empty_solid():
+    """A 'solid' bounded by one face and its own reverse: no volume, like the one OCCT's Cut once left."""
+    face = next(faces(box(50, 0, 0, 1, 1, 1)))
+    builder = BRep_Builder()
+    shell, solid = TopoDS_Shell(), TopoDS_Solid()
+    builder.MakeShell(shell)
+    builder.Add(shell, face)
+    builder.Add(shell, face.Reversed())
+    builder.MakeSolid(solid)
+    builder.Add(solid, shell)
+    return solid
+
+
+def test_volume_change_equals_the_difference_of_whole_volumes():
+    old = box(0, 0, 0, 20, 10, 5)
+    tool = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(10, 5, 2), gp_Dir(0, 0, 1)), 3.0, 10.0).Shape()
+    new = BRepAlgoAPI_Cut(old, tool).Shape()
+    assert volume_change(old, new) == pytest.approx(volume(new) - volume(old), abs=1e-9)
+    assert volume_change(old, old) == 0.0
+
+
+def test_empty_solids_a_boolean_left_are_dropped_and_real_ones_kept():
+    old = box(0, 0, 0, 20, 10, 5)
+    sliver = empty_solid()
+    assert volume(sliver) == pytest.approx(0.0, abs=1e-12)
+    cleaned = without_slivers(old, compound([old, sliver]))
+    assert len(solids(cleaned)) == 1 and volume(cleaned) == pytest.approx(1000.0)
+    # a real piece cut off the workpiece stays, however small its face count
+    chip = box(30, 0, 0, 0.1, 0.1, 0.1)
+    assert len(solids(without_slivers(old, compound([old, chip])))) == 2
+    # nothing new: the shape is returned as it is
+    assert without_slivers(old, old).IsSame(old)
