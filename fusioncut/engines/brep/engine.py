@@ -300,7 +300,7 @@ class BRepEngine:
         n = count_faces(cell.shape)
         if n > (1 + self.options.merge_growth) * cell.faces_at_merge:
             try:
-                cell.set(unify(cell.shape))
+                cell.set(unify(cell.shape, cell.volume), cell.volume)
             except Exception as exc:  # noqa: BLE001 - merging is an optimisation: keep the cell as it is
                 log.debug("face merge skipped: %s", exc)
             cell.faces_at_merge = count_faces(cell.shape) if cell.shape is not None else 0

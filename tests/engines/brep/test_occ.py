@@ -1,14 +1,16 @@
-"""Kernel helpers: the incremental volume and the sliver filter behind the Common/Cut check."""
+"""Kernel helpers: the incremental volume, the sliver filter and the face merge, each guarding a
+silent kernel error seen on the Titan-like benchmark."""
 from __future__ import annotations
 
 import pytest
-from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
 from OCP.BRep import BRep_Builder
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
 from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
 from OCP.TopoDS import TopoDS_Shell, TopoDS_Solid
 
-from fusioncut.engines.brep.occ import compound, faces, solids, volume, volume_change, without_slivers
+from fusioncut.engines.brep import occ
+from fusioncut.engines.brep.occ import compound, faces, solids, unify, volume, volume_change, without_slivers
 
 
 def box(x0, y0, z0, dx, dy, dz):
@@ -47,3 +49,28 @@ def test_empty_solids_a_boolean_left_are_dropped_and_real_ones_kept():
     assert len(solids(without_slivers(old, compound([old, chip])))) == 2
     # nothing new: the shape is returned as it is
     assert without_slivers(old, old).IsSame(old)
+
+
+def test_unify_merges_split_faces_and_keeps_the_volume():
+    two = BRepAlgoAPI_Fuse(box(0, 0, 0, 10, 10, 5), box(10, 0, 0, 10, 10, 5)).Shape()
+    merged = unify(two)
+    assert sum(1 for _ in faces(two)) > 6 and sum(1 for _ in faces(merged)) == 6
+    assert volume(merged) == pytest.approx(1000.0)
+
+
+def test_unify_refuses_a_merge_that_changes_the_volume(monkeypatch):
+    """The kernel's merge once returned an invalid workpiece 8.2 mm³ smaller, without an error."""
+    two = BRepAlgoAPI_Fuse(box(0, 0, 0, 10, 10, 5), box(10, 0, 0, 10, 10, 5)).Shape()
+
+    class WrongMerge:  # merges the faces, and loses a slice of material as the kernel once did
+        def __init__(self, shape, *flags):
+            pass
+
+        def Build(self):
+            pass
+
+        def Shape(self):
+            return box(0, 0, 0, 20, 10, 4.99)
+
+    monkeypatch.setattr(occ, "ShapeUpgrade_UnifySameDomain", WrongMerge)
+    assert occ.unify(two).IsSame(two)
