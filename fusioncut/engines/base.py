@@ -21,10 +21,10 @@ class EngineOptions:
     are split into CL segments of at most this length (None: as programmed). ``chord_tolerance``:
     ZX / YZ arcs become chords within this distance of the path. ``ramp_step``: ramps and helices
     up to a 1:5 slope are swept as level steps whose tool positions stay within this distance of
-    the path (:mod:`fusioncut.engines.segments` says why not the oblique sweep, and why not finer). ``sweep``: "exact"
-    or "sampled" (tool copies every R/4, the published method). ``failure_dir``: where the shapes of
-    a failed Boolean are saved as .brep. ``merge_growth``: merge same-surface faces of a workpiece
-    cell when its face count grew by this fraction since the last merge.
+    the path (:mod:`fusioncut.engines.segments` says why not the oblique sweep, and why not finer).
+    ``sweep``: "exact" or "sampled" (tool copies every R/4, the published method). ``failure_dir``:
+    where the shapes of a failed Boolean are saved as .brep. ``merge_growth``: merge same-surface
+    faces of a workpiece cell when its face count grew by this fraction since the last merge.
 
     ``cell_size``: the workpiece is kept as square columns of this size (mm) so that each Boolean
     touches a bounded piece; ``None`` (the default) keeps it whole. Cells give the whole workpiece's

@@ -34,8 +34,9 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, read_binary_brep, shape_list, solids,
-    split_into_cells, unify, volume, volume_change, without_slivers, write_binary_brep, write_brep,
+    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, read_binary_brep,
+    shape_list, solids, split_into_cells, unify, volume, volume_change, without_slivers, write_binary_brep,
+    write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import swept_volume
