@@ -9,7 +9,9 @@ from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
 from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
 from OCP.TopoDS import TopoDS_Shell, TopoDS_Solid
 
+from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep import occ
+from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.occ import compound, faces, solids, unify, volume, volume_change, without_slivers
 
 
@@ -74,3 +76,18 @@ def test_unify_refuses_a_merge_that_changes_the_volume(monkeypatch):
 
     monkeypatch.setattr(occ, "ShapeUpgrade_UnifySameDomain", WrongMerge)
     assert occ.unify(two).IsSame(two)
+
+
+def test_unify_leaves_its_argument_alone():
+    """The kernel's merge edits the shape it is given (a helical entry's workpiece lost 10.5 mm³),
+    and earlier workpieces share that shape's faces."""
+    from test_helical_entry import STOCK, helical_entry
+
+    engine = BRepEngine(EngineOptions(ramp_step=0.05, fuzzy=1e-6))
+    engine.start(STOCK)
+    for _, _m in zip(range(40), engine.process(helical_entry())):  # with the engine's own merges between
+        ipw = engine.ipw
+        faces_before, volume_before = sum(1 for _ in faces(ipw)), volume(ipw)
+        unify(ipw)
+        assert sum(1 for _ in faces(ipw)) == faces_before
+        assert volume(ipw) == pytest.approx(volume_before, rel=1e-12)
