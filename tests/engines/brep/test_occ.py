@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
 from OCP.BRep import BRep_Builder
+from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
 from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
 from OCP.TopoDS import TopoDS_Shell, TopoDS_Solid
@@ -76,6 +77,49 @@ def test_unify_refuses_a_merge_that_changes_the_volume(monkeypatch):
 
     monkeypatch.setattr(occ, "ShapeUpgrade_UnifySameDomain", WrongMerge)
     assert occ.unify(two).IsSame(two)
+
+
+def test_unify_keeps_the_faces_around_a_hole_and_merges_the_rest(monkeypatch):
+    """The kernel's merge once dropped a face of a workpiece (a hole, 7.9 mm³ "lost"); refusing
+    the whole merge then let the workpiece grow tenfold in faces. The faces around the hole stay
+    as they are and the rest is merged."""
+    row = box(0, 0, 0, 10, 10, 5)
+    for k in range(1, 4):
+        row = BRepAlgoAPI_Fuse(row, box(10 * k, 0, 0, 10, 10, 5)).Shape()
+    real = occ.ShapeUpgrade_UnifySameDomain
+    rounds = []
+
+    class HoleyMerge:  # the first merge loses the end face at x = 0, later ones are the kernel's
+        def __init__(self, shape, *flags):
+            self.merge = real(shape, *flags)
+            rounds.append(self)
+
+        def KeepShape(self, shape):
+            self.merge.KeepShape(shape)
+
+        def Build(self):
+            self.merge.Build()
+
+        def Shape(self):
+            merged = self.merge.Shape()
+            if len(rounds) > 1:
+                return merged
+            builder = BRep_Builder()
+            shell, solid = TopoDS_Shell(), TopoDS_Solid()
+            builder.MakeShell(shell)
+            for f in faces(merged):
+                if occ.bounding_box(f)[1][0] > 1e-6:
+                    builder.Add(shell, f)
+            builder.MakeSolid(solid)
+            builder.Add(solid, shell)
+            return solid
+
+    monkeypatch.setattr(occ, "ShapeUpgrade_UnifySameDomain", HoleyMerge)
+    merged = occ.unify(row)
+    assert len(rounds) == 2
+    assert count_faces(row) == 18 and count_faces(merged) == 10  # the first box's faces are kept
+    assert volume(merged) == pytest.approx(2000.0, rel=1e-12)
+    assert BRepCheck_Analyzer(merged).IsValid()
 
 
 def test_unify_leaves_its_argument_alone():
