@@ -27,8 +27,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from OCP.BOPAlgo import BOPAlgo_PaveFiller
-from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut
+from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_Operation, BOPAlgo_PaveFiller
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
@@ -264,14 +263,15 @@ class BRepEngine:
         for fuzzy in (first, *self.options.fuzzy_retries):
             pf = BOPAlgo_PaveFiller()
             pf.SetArguments(shape_list([ipw, sweep]))
+            pf.SetRunParallel(True)
             if fuzzy:
                 pf.SetFuzzyValue(fuzzy)
             pf.Perform()
             if pf.HasErrors():
                 last = f"intersection reported errors (fuzzy={fuzzy})"
                 continue
-            common = BRepAlgoAPI_Common(ipw, sweep, pf)
-            if not common.IsDone():
+            common = _boolean(ipw, sweep, pf, BOPAlgo_Operation.BOPAlgo_COMMON)
+            if common.HasErrors():
                 last = f"common failed (fuzzy={fuzzy})"
                 continue
             removed = volume(common.Shape())
@@ -282,8 +282,8 @@ class BRepEngine:
                 # more material than the tool swept: the intersection went wrong, not the physics
                 last = f"removed {removed:.6g} mm³ > swept {sweep_volume:.6g} mm³ (fuzzy={fuzzy})"
                 continue
-            cut = BRepAlgoAPI_Cut(ipw, sweep, pf)
-            if not cut.IsDone():
+            cut = _boolean(ipw, sweep, pf, BOPAlgo_Operation.BOPAlgo_CUT)
+            if cut.HasErrors():
                 last = f"cut failed (fuzzy={fuzzy})"
                 continue
             mismatch = -volume_change(ipw, cut.Shape()) - removed
@@ -312,6 +312,23 @@ class BRepEngine:
         write_brep(self.ipw, str(folder / f"cl{index:06d}_ipw.brep"))
         write_brep(sweep, str(folder / f"cl{index:06d}_sweep.brep"))
         return str(folder / f"cl{index:06d}_*.brep")
+
+
+def _boolean(ipw: TopoDS_Shape, sweep: TopoDS_Shape, pf: BOPAlgo_PaveFiller, operation) -> BOPAlgo_BOP:
+    """``ipw`` (operation) ``sweep`` on the intersections ``pf`` already computed, with its history.
+
+    Run on the kernel's threads and without its check for inverted solids (neither argument can be
+    one: the IPW comes from the stock by Cuts and the sweep is built outward): on the quick
+    benchmark's first 700 adaptive CLs the median went from 70–77 ms to 58–65 ms, same results.
+    """
+    op = BOPAlgo_BOP()
+    op.AddArgument(ipw)
+    op.AddTool(sweep)
+    op.SetOperation(operation)
+    op.SetCheckInverted(False)
+    op.SetRunParallel(True)
+    op.PerformWithFiller(pf)
+    return op
 
 
 def cl_sequence(toolpath: Toolpath, options: EngineOptions, default_tool: MillingTool | None = None,
