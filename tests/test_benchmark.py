@@ -19,3 +19,32 @@ def test_benchmark_tiny_runs_and_reports(tmp_path):
         assert row["slice_1"]["processed"] <= row["cls"]
         assert row["baseline_median_ms"] is None or row["baseline_median_ms"] > 0
     assert report["parallel_seconds"][1] > 0
+
+
+@pytest.mark.slow
+def test_quick_program_workpiece_stays_small_past_the_helix_where_a_merge_left_a_hole(tmp_path):
+    """On the quick program, the face merge at CL 2078 (a helix step at Z-6.45) leaves a hole; while
+    such merges were refused whole, the workpiece grew to 4,382 faces by CL 2199 and every Boolean
+    slowed tenfold. Now the faces around the hole stay and the rest is merged."""
+    from run_benchmark import SEGMENT
+    from titan_program import QUICK, STOCK_MAX, STOCK_MIN, titan_program
+
+    from fusioncut.engines.base import EngineOptions
+    from fusioncut.engines.brep.engine import BRepEngine, cl_sequence
+    from fusioncut.engines.brep.occ import count_faces
+    from fusioncut.io.gcode import read_gcode
+    from fusioncut.model import BoxStock, CLStatus
+
+    program = tmp_path / "quick.nc"
+    program.write_text(titan_program(QUICK))
+    engine = BRepEngine(EngineOptions(**SEGMENT))
+    engine.start(BoxStock(STOCK_MIN, STOCK_MAX))
+    most_faces = 0
+    for index, move, tool, feed_angle in cl_sequence(read_gcode(program), engine.options):
+        assert engine.step(index, move, tool, feed_angle).status != CLStatus.FAILED, index
+        if index >= 2070:
+            most_faces = max(most_faces, count_faces(engine.ipw))
+        if index == 2200:
+            break
+    assert most_faces < 1000
+    assert abs(engine.stock_volume - engine.ipw_volume - engine.removed_total) <= 1e-6 * engine.stock_volume
