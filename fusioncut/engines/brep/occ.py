@@ -61,10 +61,15 @@ def volume_change(old: TopoDS_Shape, new: TopoDS_Shape) -> float:
     # surface, so its GProp integral does not depend on GProp's own reference point
     picked = [f for f in faces(new) if not maps[0].Contains(f)]
     picked += [f.Reversed() for f in faces(old) if not maps[1].Contains(f)]
-    if not picked:
+    return _enclosed_volume(picked)
+
+
+def _enclosed_volume(closed: list[TopoDS_Face]) -> float:
+    """GProp's volume integral over faces that together bound closed regions (mm³; 0 if none)."""
+    if not closed:
         return 0.0
     props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(compound(picked), props, False)
+    BRepGProp.VolumeProperties_s(compound(closed), props, False)
     return props.Mass()
 
 
@@ -208,9 +213,10 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
         merged = u.Shape()
         if count_faces(merged) == n_faces:
             return shape
-        # the copy's faces are new objects, so this integrates both shapes' faces in one pass; the
-        # faces the merge left alone cancel exactly, unlike two whole volumes (each good to ~1e-7)
-        sound = abs(volume_change(shape, merged)) <= 1e-9 * reference + 1e-6
+        # both shapes' faces in one pass (the copy shares none with ``shape``): the faces the merge
+        # left alone cancel exactly, unlike two whole volumes (each good to ~1e-7 of the workpiece)
+        change = _enclosed_volume([*faces(merged), *(f.Reversed() for f in faces(shape))])
+        sound = abs(change) <= 1e-9 * reference + 1e-6
         if sound and BRepCheck_Analyzer(merged).IsValid():
             return merged
         # the faces that reach the hole's rim: the one that went missing and its neighbours (by
