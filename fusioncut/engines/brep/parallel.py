@@ -93,7 +93,8 @@ class PartitionWorker:
 
     def __init__(self, cells: bytes, faces_at_merge: list[int], stock_volume: float, options: EngineOptions,
                  toolpath: Toolpath, default_tool: MillingTool | None, position: int) -> None:
-        self.engine = BRepEngine(options)
+        # one worker per core: the kernel's own threads would only compete with the other workers
+        self.engine = BRepEngine(replace(options, kernel_threads=False))
         self.engine.cells = unpack_cells(cells, faces_at_merge)
         # the whole stock's: the engine's "nothing removed" threshold is relative to it
         self.engine.stock_volume = stock_volume
