@@ -21,11 +21,9 @@ from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve2d, BRepAdaptor_Surface
 from OCP.BRepTools import BRepTools
 from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Line, GeomAbs_Sphere, GeomAbs_Torus
-from OCP.TopAbs import TopAbs_EDGE
-from OCP.TopExp import TopExp_Explorer
-from OCP.TopoDS import TopoDS, TopoDS_Face
+from OCP.TopoDS import TopoDS_Face
 
-from fusioncut.engines.brep.occ import area, faces
+from fusioncut.engines.brep.occ import area, edges, faces
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine
 
 TWO_PI = 2 * math.pi
@@ -148,10 +146,7 @@ def _snap(x: float, v: float) -> float:
 def _crossings(face: TopoDS_Face, v: float) -> list[float]:
     """Sorted ``u`` where the face boundary crosses ``v`` (half-open rule at vertices)."""
     us: list[float] = []
-    exp = TopExp_Explorer(face, TopAbs_EDGE)
-    while exp.More():
-        edge = TopoDS.Edge(exp.Current())
-        exp.Next()
+    for edge in edges(face):
         if BRep_Tool.Degenerated_s(edge):
             continue
         ad = BRepAdaptor_Curve2d(edge, face)
@@ -290,10 +285,8 @@ def _section_arcs(face: TopoDS_Face, tip: tuple[float, float, float], z: float) 
     if not section.IsDone():
         raise RuntimeError(f"could not slice a contact face at z={z:.4f}")
     out = []
-    exp = TopExp_Explorer(section.Shape(), TopAbs_EDGE)
-    while exp.More():
-        curve = BRepAdaptor_Curve(TopoDS.Edge(exp.Current()))
-        exp.Next()
+    for edge in edges(section.Shape()):
+        curve = BRepAdaptor_Curve(edge)
         f, l = curve.FirstParameter(), curve.LastParameter()
         angles = [math.atan2(p.Y() - tip[1], p.X() - tip[0]) for p in (curve.Value(t) for t in (f, 0.5 * (f + l), l))]
         a0, am, a1 = angles

@@ -6,7 +6,7 @@ import math
 from collections.abc import Iterable, Iterator
 
 from OCP.Bnd import Bnd_Box
-from OCP.BRep import BRep_Builder
+from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
 from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepBuilderAPI import (
@@ -19,10 +19,11 @@ from OCP.GC import GC_MakeArcOfCircle
 from OCP.GProp import GProp_GProps
 from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
-from OCP.TopAbs import TopAbs_FACE, TopAbs_SOLID
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SOLID, TopAbs_ShapeEnum
 from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
-from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shape
+from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Edge, TopoDS_Face, TopoDS_Shape
+from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as AncestorMap
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 from OCP.collections import List_TopoDS_Shape
 
@@ -79,11 +80,19 @@ def area(shape: TopoDS_Shape) -> float:
     return props.Mass()
 
 
-def faces(shape: TopoDS_Shape) -> Iterator[TopoDS_Face]:
-    exp = TopExp_Explorer(shape, TopAbs_FACE)
+def _explore(shape: TopoDS_Shape, kind: TopAbs_ShapeEnum) -> Iterator[TopoDS_Shape]:
+    exp = TopExp_Explorer(shape, kind)
     while exp.More():
-        yield TopoDS.Face(exp.Current())
+        yield exp.Current()
         exp.Next()
+
+
+def faces(shape: TopoDS_Shape) -> Iterator[TopoDS_Face]:
+    return map(TopoDS.Face, _explore(shape, TopAbs_FACE))
+
+
+def edges(shape: TopoDS_Shape) -> Iterator[TopoDS_Edge]:
+    return map(TopoDS.Edge, _explore(shape, TopAbs_EDGE))
 
 
 def count_faces(shape: TopoDS_Shape) -> int:
@@ -91,12 +100,7 @@ def count_faces(shape: TopoDS_Shape) -> int:
 
 
 def solids(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
-    out = []
-    exp = TopExp_Explorer(shape, TopAbs_SOLID)
-    while exp.More():
-        out.append(exp.Current())
-        exp.Next()
-    return out
+    return list(_explore(shape, TopAbs_SOLID))
 
 
 def without_slivers(old: TopoDS_Shape, new: TopoDS_Shape, max_faces: int = 64,
@@ -200,14 +204,13 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
     unchanged. (Refusing the whole merge instead let that benchmark's workpiece grow from 310 to
     4,382 faces within 120 CLs, and the Boolean median rose from 55–85 ms to 254 ms.)
     """
-    reference = abs(shape_volume or volume(shape))
     n_faces = count_faces(shape)
-    kept: list[TopoDS_Face] = []  # faces of ``shape`` whose edges must stay
+    kept = ShapeMap()  # faces of ``shape`` whose edges must stay
     for _ in range(max_rounds):
         copy = BRepBuilderAPI_Copy(shape)
         u = ShapeUpgrade_UnifySameDomain(copy.Shape(), True, True, False)
-        for f in kept:
-            for e in edges(f):
+        for i in range(1, kept.Extent() + 1):
+            for e in edges(kept.FindKey(i)):
                 u.KeepShape(copy.Modified(e).First())
         u.Build()
         merged = u.Shape()
@@ -216,29 +219,27 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
         # both shapes' faces in one pass (the copy shares none with ``shape``): the faces the merge
         # left alone cancel exactly, unlike two whole volumes (each good to ~1e-7 of the workpiece)
         change = _enclosed_volume([*faces(merged), *(f.Reversed() for f in faces(shape))])
+        reference = abs(shape_volume if shape_volume is not None else volume(shape))
         sound = abs(change) <= 1e-9 * reference + 1e-6
         if sound and BRepCheck_Analyzer(merged).IsValid():
             return merged
         # the faces that reach the hole's rim: the one that went missing and its neighbours (by
         # bounding boxes: the merge history is slow to query from Python, ~0.2 ms per edge)
         rim = [bounding_box(e) for e in _free_edges(merged)]
-        culprits = [f for f in faces(shape) if not any(k.IsSame(f) for k in kept)
+        culprits = [f for f in faces(shape) if not kept.Contains(f)
                     and any(boxes_overlap(bounding_box(f), b, 1e-6) for b in rim)]
         log.debug("face merge %d -> %d faces unsound (volume ok: %s); keeping %d faces", n_faces,
                   count_faces(merged), sound, len(culprits))
         if not culprits:
             return shape
-        kept += culprits
+        for f in culprits:
+            kept.Add(f)
     return shape
 
 
 def _free_edges(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
     """The edges of ``shape`` that bound only one face (the rim of a hole in a closed shell)."""
-    from OCP.BRep import BRep_Tool
-    from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as EdgeFaces
-    from OCP.TopAbs import TopAbs_EDGE
-
-    ancestors = EdgeFaces()
+    ancestors = AncestorMap()
     TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, ancestors)
     out = []
     for i in range(1, ancestors.Extent() + 1):
@@ -246,15 +247,6 @@ def _free_edges(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
         if ancestors.FindFromIndex(i).Size() == 1 and not BRep_Tool.Degenerated_s(TopoDS.Edge(edge)):
             out.append(edge)
     return out
-
-
-def edges(shape: TopoDS_Shape) -> Iterator[TopoDS_Shape]:
-    from OCP.TopAbs import TopAbs_EDGE
-
-    exp = TopExp_Explorer(shape, TopAbs_EDGE)
-    while exp.More():
-        yield exp.Current()
-        exp.Next()
 
 
 def children(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
