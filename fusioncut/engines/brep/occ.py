@@ -122,9 +122,13 @@ def without_slivers(old: TopoDS_Shape, new: TopoDS_Shape, max_faces: int = 64,
     return keep[0] if len(keep) == 1 else compound(keep)  # an empty compound: nothing left
 
 
-def bounding_box(shape: TopoDS_Shape) -> tuple[Vec3, Vec3]:
+def bounding_box(shape: TopoDS_Shape, exact: bool = False) -> tuple[Vec3, Vec3]:
+    """Axis-aligned box (mm); widened by the shapes' tolerances unless ``exact`` (slower)."""
     box = Bnd_Box()
-    BRepBndLib.Add_s(shape, box, False)
+    if exact:
+        BRepBndLib.AddOptimal_s(shape, box, False, False)
+    else:
+        BRepBndLib.Add_s(shape, box, False)
     lo, hi = box.CornerMin(), box.CornerMax()
     return (lo.X(), lo.Y(), lo.Z()), (hi.X(), hi.Y(), hi.Z())
 
@@ -264,13 +268,17 @@ def children(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
 def split_into_cells(solid: TopoDS_Shape, size: float | None) -> list[TopoDS_Shape]:
     """``solid`` cut into square columns of ``size`` mm in X and Y (full height); ``None``: whole.
 
-    Columns without material are left out. The grid starts at the solid's bounding box corner.
+    Columns without material are left out. The grid starts at the corner of the solid's exact
+    bounding box: the usual box is widened by the edges' tolerance (1e-7 mm), and walls that far from
+    the round coordinates CAM programs use (a helix centred on a wall) sit within the kernel's
+    tolerance of the sweeps' edges; the cells' volumes then drifted by 1e-6 mm³ per CL, 1.7e-8 of
+    the removal on a helical entry, against 3e-14 with exact walls.
     """
     if size is None:
         return [solid]
     from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
 
-    lo, hi = bounding_box(solid)
+    lo, hi = bounding_box(solid, exact=True)
     nx = max(1, math.ceil((hi[0] - lo[0]) / size - 1e-9))
     ny = max(1, math.ceil((hi[1] - lo[1]) / size - 1e-9))
     out = []
