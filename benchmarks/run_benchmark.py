@@ -6,8 +6,8 @@
 * **Program**: the Titan-like part of :mod:`titan_program`, written as G-code and read back through
   FusionCut's G-code reader (tools from the Fusion-style tool comments); moves are split into CL
   segments of at most 2 mm, helices into chords within 10 µm.
-* **Ours**: the exact B-Rep engine with its default options (the whole IPW; ``--cells``: 20 mm
-  cells), at each slice height asked for.
+* **Ours**: the exact B-Rep engine with its default options (the IPW in 20 mm cells; ``--whole``:
+  one piece), at each slice height asked for.
 * **Baseline** (the published method reproduced in our engine): sampled tool copies every R/4 and
   Booleans on the whole IPW. It is far too slow for the whole program, so it runs
   ``--baseline-cls`` CLs of every operation from its first processed CL, on our IPW just before it;
@@ -39,8 +39,9 @@ from fusioncut.model import BoxStock, CLStatus  # noqa: E402
 
 TINY = ProgramSize(slot_length=4.0, slots=1, depths=(-4.0,), finish_rows=1, contours=1)
 SEGMENT = dict(max_segment_length=2.0, chord_tolerance=0.01)
-# ours: the engine's defaults (--cells: 20 mm cells); the parallel runs always use the cells
+# ours: the engine's defaults (20 mm cells; --whole: one piece); the parallel runs always use cells
 OURS = dict(SEGMENT)
+WHOLE = dict(SEGMENT, cell_size=None)
 PARALLEL = dict(SEGMENT, cell_size=20.0)
 
 
@@ -62,8 +63,8 @@ def processed(m) -> bool:
     return "boolean" in dict(m.timings_ms)
 
 
-def run_ours(toolpath, stock, slice_height: float, snapshots: dict | None = None, cells: bool = False) -> dict:
-    engine = BRepEngine(EngineOptions(slice_height=slice_height, **(PARALLEL if cells else OURS)))
+def run_ours(toolpath, stock, slice_height: float, snapshots: dict | None = None, whole: bool = False) -> dict:
+    engine = BRepEngine(EngineOptions(slice_height=slice_height, **(WHOLE if whole else OURS)))
     engine.start(stock)
     per_op: dict[str, dict] = {}
     t0 = time.perf_counter()
@@ -127,7 +128,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--slicing", default="1,0.2", help="slice heights in mm, comma separated")
     ap.add_argument("--baseline-cls", type=int, default=None, help="CLs per operation for the baseline")
     ap.add_argument("--workers", default="1,2", help="Dask worker counts to time ('' to skip)")
-    ap.add_argument("--cells", action="store_true", help="ours with the IPW in 20 mm cells")
+    ap.add_argument("--whole", action="store_true", help="ours with the IPW in one piece (no cells)")
     ap.add_argument("--out", type=Path, default=Path("benchmark-results"))
     args = ap.parse_args(argv)
     size = TINY if args.tiny else QUICK if args.quick else FULL
@@ -141,10 +142,10 @@ def main(argv: list[str] | None = None) -> dict:
 
     t_start = time.perf_counter()
     snapshots: dict = {}
-    ours = {h: run_ours(toolpath, stock, h, snapshots if k == 0 else None, args.cells) for k, h in enumerate(heights)}
+    ours = {h: run_ours(toolpath, stock, h, snapshots if k == 0 else None, args.whole) for k, h in enumerate(heights)}
     baseline = run_baseline(toolpath, snapshots, n_base, heights[0])
     parallel = {int(w): run_parallel(toolpath, stock, int(w)) for w in args.workers.split(",") if w}
-    report = {"size": "tiny" if args.tiny else "quick" if args.quick else "full", "cells": args.cells,
+    report = {"size": "tiny" if args.tiny else "quick" if args.quick else "full", "whole": args.whole,
               "program": str(program), "slice_heights_mm": heights, "baseline_cls_per_op": n_base,
               "peak_rss_mb": rss_mb(), "wall_s": time.perf_counter() - t_start, "operations": {}}
     first = ours[heights[0]]

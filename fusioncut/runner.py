@@ -52,7 +52,7 @@ CHECKPOINT_DIR = "checkpoint"
 RUN_STATE = "run.json"  # in the checkpoint folder: which job (hash, version) the engine state is of,
 # and the cell size its workpiece was cut into
 DEFAULT_CHECKPOINT_EVERY = 200
-PARALLEL_CELL_SIZE = 20.0  # mm: the cells of a parallel run whose job gives no cell_size
+PARALLEL_CELL_SIZE = 20.0  # mm: the cells of a parallel run whose job asks for a whole workpiece
 
 __all__ = [
     "OperationSummary", "PreparedJob", "RunPlan", "RunResult", "prepare_job", "read_toolpath", "run_job",
@@ -355,7 +355,7 @@ def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir:
         if not isinstance(engine, BRepEngine) and options.cell_size is None:
             # the workers share the workpiece out by cells: without cells one worker would do it all
             engine.options = replace(options, cell_size=PARALLEL_CELL_SIZE)
-            log.info("parallel run: the workpiece is kept as %g mm cells (the job gives no cell_size)",
+            log.info("parallel run: the workpiece is kept as %g mm cells (the job asks for none)",
                      PARALLEL_CELL_SIZE)
         engine.start(stock)  # reads and checks a stock solid: still before anything is written
         _clear_previous_run(out_dir)

@@ -26,7 +26,7 @@ def test_quick_program_workpiece_stays_small_past_the_helix_where_a_merge_left_a
     """On the quick program, the face merge at CL 2078 (a helix step at Z-6.45) leaves a hole; while
     such merges were refused whole, the workpiece grew to 4,382 faces by CL 2199 and the Boolean
     median rose from 55–85 ms to 254 ms. Now the faces around the hole stay and the rest is merged."""
-    from run_benchmark import SEGMENT
+    from run_benchmark import WHOLE
     from titan_program import QUICK, STOCK_MAX, STOCK_MIN, titan_program
 
     from fusioncut.engines.base import EngineOptions
@@ -37,7 +37,7 @@ def test_quick_program_workpiece_stays_small_past_the_helix_where_a_merge_left_a
 
     program = tmp_path / "quick.nc"
     program.write_text(titan_program(QUICK))
-    engine = BRepEngine(EngineOptions(**SEGMENT))
+    engine = BRepEngine(EngineOptions(**WHOLE))  # the hole was found on the whole workpiece
     engine.start(BoxStock(STOCK_MIN, STOCK_MAX))
     most_faces = 0
     for index, move, tool, feed_angle in cl_sequence(read_gcode(program), engine.options):

@@ -13,8 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_cli import runner, small_job_file
-from test_runner import PROGRAM, result_files, small_job
+from test_cli import runner
+from test_cli import small_job_file as _small_job_file
+from test_runner import PROGRAM, result_files
+from test_runner import small_job as _small_job
 
 from fusioncut.cli import app
 from fusioncut.errors import InputError
@@ -44,6 +46,19 @@ def assert_same_rows(got: Path, ref: Path) -> None:
     np.testing.assert_allclose(a.slices[keys], b.slices[keys], atol=1e-9, rtol=0)
     for col in ("entry_deg", "exit_deg"):
         np.testing.assert_allclose(a.slices[col], b.slices[col], atol=ANGLE_TOL, rtol=0, err_msg=col)
+
+
+def small_job(tmp_path: Path, **options):
+    """The small job with the workpiece kept whole: the reference the cells of a parallel run meet."""
+    return _small_job(tmp_path, **{"cell_size": None, **options})
+
+
+def small_job_file(tmp_path: Path, **kwargs) -> Path:
+    path = _small_job_file(tmp_path, **kwargs)
+    doc = json.loads(path.read_text())
+    doc["options"]["cell_size"] = None
+    path.write_text(json.dumps(doc))
+    return path
 
 
 def run_state(out: Path) -> dict:

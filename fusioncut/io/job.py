@@ -97,9 +97,10 @@ class Options(_Strict):
     ``snapshot_cls`` (write the workpiece as ``ipw_cl<N>.step`` after each of these CL indices),
     ``workers`` (split the workpiece's cells among that many Dask worker processes of an embedded
     cluster) and ``scheduler`` (the address of a running Dask scheduler whose workers do it instead).
-    A parallel run keeps the workpiece as cells (20 mm unless ``cell_size`` says otherwise); its
-    results equal the single-process run's to 0.001° and 1e-6 of the volumes, and a checkpoint of
-    either resumes in the other.
+    ``cell_size`` (mm, default 20) keeps the workpiece as square columns, ``null`` keeps it whole; a
+    parallel run always uses cells (20 mm when the job asks for none). Its results equal the
+    single-process run's to 0.001° and 1e-6 of the volumes, and a checkpoint of either resumes in
+    the other.
     """
 
     slice_height: float = Field(1.0, gt=0)
@@ -107,7 +108,7 @@ class Options(_Strict):
     chord_tolerance: float = Field(1e-3, gt=0)
     ramp_step: float = Field(5e-2, gt=0)
     sweep: Literal["exact", "sampled"] = "exact"
-    cell_size: float | None = Field(None, gt=0)
+    cell_size: float | None = Field(20.0, gt=0)
     checkpoint_every: int = Field(200, ge=0)
     snapshot_cls: list[Annotated[int, Field(ge=0)]] = []
     workers: int = Field(1, ge=1)
