@@ -148,7 +148,7 @@ def _print_summary(result) -> None:
 LOG_FILE_HELP = "log file (default: <out>/fusioncut.log)"
 LOG_LEVEL_HELP = "log file level; debug records every CL (source file:line, status, sweep method, timings)"
 IPW_HELP = "write the final workpiece as ipw.step and ipw.stl into the results folder"
-WORKERS_HELP = ("run on an embedded Dask cluster of N worker processes, each owning a block of the workpiece's "
+WORKERS_HELP = ("run on an embedded Dask cluster of N worker processes, each owning a share of the workpiece's "
                 "cells (20 mm cells if the job sets cell_size to null); overrides the job's options.workers")
 SCHEDULER_HELP = ("run on every worker of a running Dask scheduler (e.g. tcp://host:8786); wins over "
                   "--workers; overrides the job's options.scheduler")

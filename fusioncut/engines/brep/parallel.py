@@ -1,8 +1,9 @@
 """Parallel cells: the IPW's cells split among Dask workers, one CL sequence, merged results.
 
-Cells are independent between the CLs they share, so each worker owns a contiguous block of cells
-(a Dask *actor* that keeps its B-Rep shapes in its own process) and runs every CL of the program
-against them; CLs whose sweep misses its cells cost one bounding-box test. Per CL only floats cross
+Cells are independent between the CLs they share, so each worker owns some of the cells, dealt out
+in turn so that neighbours belong to different workers (a Dask *actor* that keeps its B-Rep shapes
+in its own process), and runs every CL of the program against them; CLs whose sweep misses its
+cells cost one bounding-box test. Per CL only floats cross
 process boundaries. A CL is done in two phases per batch of CLs:
 
 1. every worker cuts the batch on its cells and reports removed volume, contact areas and the flute
@@ -31,7 +32,6 @@ from __future__ import annotations
 
 import io
 import logging
-import math
 import signal
 import threading
 import time
@@ -152,11 +152,14 @@ class PartitionWorker:
         return sum(volume(c.shape) for c in self._cells_at(next_cl) if c.shape is not None)
 
 
-def cell_partition(n_cells: int, centres: list[tuple[float, float]], parts: int) -> list[list[int]]:
-    """Contiguous blocks of cells along X (then Y), as equal in count as possible."""
-    order = sorted(range(n_cells), key=lambda k: (centres[k][0], centres[k][1]))
-    size = math.ceil(n_cells / parts)
-    return [order[k:k + size] for k in range(0, n_cells, size)]
+def cell_partition(n_cells: int, parts: int) -> list[list[int]]:
+    """Cells dealt out in turn: cell k goes to part k mod ``parts`` (empty parts left out).
+
+    The cells are listed column by column, so neighbours mostly belong to different parts and every
+    worker has cells wherever the tool is. Contiguous blocks left one worker idle while the tool
+    cleared the other's side: on the quick benchmark 2 workers took 174 s against 170 s for one.
+    """
+    return [ids for ids in (list(range(k, n_cells, parts)) for k in range(parts)) if ids]
 
 
 @contextmanager
@@ -347,16 +350,14 @@ class ParallelBRepEngine:
 
     # -- internals --------------------------------------------------------------------------------------
     def _seed(self, toolpath: Toolpath, default_tool: MillingTool | None, start_at: int) -> None:
-        """Give each worker its block of the current cells, as of CL ``start_at``."""
+        """Give each worker its share of the current cells, as of CL ``start_at``."""
         if self._client is None:
             self.open()
         cells = self._gather()
         self._drop_actors()
         self._next = start_at
-        centres = [((c.box[0][0] + c.box[1][0]) / 2, (c.box[0][1] + c.box[1][1]) / 2) if c.box else (0.0, 0.0)
-                   for c in cells]
         addresses = sorted(self._client.scheduler_info()["workers"])
-        parts = cell_partition(len(cells), centres, max(1, len(addresses)))
+        parts = cell_partition(len(cells), max(1, len(addresses)))
         futures = [self._client.submit(PartitionWorker, *pack_cells([cells[i] for i in ids]), self.stock_volume,
                                        self.options, toolpath, default_tool, start_at, actor=True,
                                        workers=[addresses[k % len(addresses)]], allow_other_workers=False)
