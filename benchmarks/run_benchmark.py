@@ -34,6 +34,7 @@ from titan_program import FULL, QUICK, STOCK_MAX, STOCK_MIN, ProgramSize, titan_
 
 from fusioncut.engines.base import EngineOptions  # noqa: E402
 from fusioncut.engines.brep.engine import BRepEngine, cl_sequence  # noqa: E402
+from fusioncut.engines.brep.export import whole_ipw  # noqa: E402
 from fusioncut.io.gcode import read_gcode  # noqa: E402
 from fusioncut.model import BoxStock, CLStatus  # noqa: E402
 
@@ -75,6 +76,9 @@ def run_ours(toolpath, stock, slice_height: float, snapshots: dict | None = None
         m = engine.step(index, move, tool, feed_angle)
         if before is not None and processed(m):
             snapshots[move.operation] = before
+        if m.operation not in per_op:
+            print(f"[{slice_height:g} mm] {m.operation} from CL {index} at {time.perf_counter() - t0:.0f} s",
+                  file=sys.stderr, flush=True)
         op = per_op.setdefault(m.operation, {"cls": 0, "times": [], "all": {}, "seconds": 0.0})
         op["cls"] += 1
         total = dict(m.timings_ms)["total"]
@@ -95,7 +99,8 @@ def run_baseline(toolpath, snapshots: dict, n: int, slice_height: float) -> dict
     out = {}
     for op, (first, ipw) in snapshots.items():
         engine = BRepEngine(opts)
-        engine.start(ipw)
+        # one solid, as the published method keeps it: our cells' compound would add their walls
+        engine.start(whole_ipw(ipw))
         times = {}
         for index, move, tool, feed_angle in sequence[first:first + n]:
             if move.operation != op:
