@@ -3,8 +3,8 @@
 Cells are independent between the CLs they share, so each worker owns some of the cells, dealt out
 in turn so that neighbours belong to different workers (a Dask *actor* that keeps its B-Rep shapes
 in its own process), and runs every CL of the program against them; CLs whose sweep misses its
-cells cost one bounding-box test. Per CL only floats cross
-process boundaries. A CL is done in two phases per batch of CLs:
+cells cost one bounding-box test. Per CL only floats cross process boundaries. A CL is done in two
+phases per batch of CLs:
 
 1. every worker cuts the batch on its cells and reports removed volume, contact areas and the flute
    contact's height range (keeping its contact faces);
@@ -157,7 +157,8 @@ def cell_partition(n_cells: int, parts: int) -> list[list[int]]:
 
     The cells are listed column by column, so neighbours mostly belong to different parts and every
     worker has cells wherever the tool is. Contiguous blocks left one worker idle while the tool
-    cleared the other's side: on the quick benchmark 2 workers took 174 s against 170 s for one.
+    cleared the other's side: on the quick benchmark 2 workers took 174 s against 170 s for one,
+    dealt out in turn 114 s.
     """
     return [ids for ids in (list(range(k, n_cells, parts)) for k in range(parts)) if ids]
 

@@ -102,3 +102,16 @@ def test_dask_workers_equal_one_process(whole):
         maps = list(engine.run(program(), STOCK))
         conserved(engine)
     assert_same(maps, whole)
+
+
+@pytest.mark.parametrize("n_cells, parts", [(40, 2), (40, 3), (7, 2), (3, 4), (1, 1)])
+def test_cell_partition_deals_out_every_cell_once_and_splits_neighbours(n_cells, parts):
+    from fusioncut.engines.brep.parallel import cell_partition
+
+    shares = cell_partition(n_cells, parts)
+    assert sorted(i for share in shares for i in share) == list(range(n_cells))
+    assert len(shares) == min(n_cells, parts) and all(shares)
+    owner = {i: k for k, share in enumerate(shares) for i in share}
+    # the cells are listed column by column: the next one in the list is a neighbour in its column
+    assert all(owner[i] != owner[i + 1] for i in range(n_cells - 1)) or parts == 1
+    assert max(map(len, shares)) - min(map(len, shares)) <= 1
