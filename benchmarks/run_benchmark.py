@@ -40,10 +40,9 @@ from fusioncut.model import BoxStock, CLStatus  # noqa: E402
 
 TINY = ProgramSize(slot_length=4.0, slots=1, depths=(-4.0,), finish_rows=1, contours=1)
 SEGMENT = dict(max_segment_length=2.0, chord_tolerance=0.01)
-# ours: the engine's defaults (20 mm cells; --whole: one piece); the parallel runs always use cells
+# ours and the parallel runs: the engine's defaults (20 mm cells); --whole: ours in one piece
 OURS = dict(SEGMENT)
 WHOLE = dict(SEGMENT, cell_size=None)
-PARALLEL = dict(SEGMENT, cell_size=20.0)
 
 
 def rss_mb() -> float:
@@ -115,7 +114,7 @@ def run_baseline(toolpath, snapshots: dict, n: int, slice_height: float) -> dict
 def run_parallel(toolpath, stock, workers: int) -> float:
     from fusioncut.engines.brep.parallel import ParallelBRepEngine
 
-    with ParallelBRepEngine(EngineOptions(**PARALLEL), workers=workers) as engine:
+    with ParallelBRepEngine(EngineOptions(**OURS), workers=workers) as engine:
         t0 = time.perf_counter()
         for _ in engine.run(toolpath, stock):
             pass

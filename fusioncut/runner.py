@@ -52,7 +52,7 @@ CHECKPOINT_DIR = "checkpoint"
 RUN_STATE = "run.json"  # in the checkpoint folder: which job (hash, version) the engine state is of,
 # and the cell size its workpiece was cut into
 DEFAULT_CHECKPOINT_EVERY = 200
-PARALLEL_CELL_SIZE = 20.0  # mm: the cells of a parallel run whose job asks for a whole workpiece
+PARALLEL_CELL_SIZE = EngineOptions().cell_size  # mm: the cells of a parallel run whose job asks for none
 
 __all__ = [
     "OperationSummary", "PreparedJob", "RunPlan", "RunResult", "prepare_job", "read_toolpath", "run_job",
