@@ -41,6 +41,11 @@ class EngineOptions:
     took the quick benchmark's adaptive median from 68 to 59–65 ms; with two runs sharing the cores it
     cost 6–13% (1055_utab, first 300 CLs), so the parallel engine's workers, which have a core each,
     turn it off.
+
+    ``ceiling_pixel``: pixel size (mm) of the material's height bounds
+    (:class:`fusioncut.engines.ceiling.MaterialCeiling`), with which a cell whose material the sweep
+    provably misses skips its Booleans; ``None`` runs every Boolean. Used with exact sweeps only; it
+    changes no result, only the time.
     """
 
     slice_height: float = 1.0
@@ -54,6 +59,7 @@ class EngineOptions:
     fuzzy_retries: tuple[float, ...] = (1e-6, 1e-5, 1e-4)
     cell_size: float | None = 20.0
     kernel_threads: bool = True
+    ceiling_pixel: float | None = 0.1
 
 
 class EngagementEngine(Protocol):

@@ -31,6 +31,7 @@ from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_Operation, BOPAlgo_PaveFiller
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.ceiling import MaterialCeiling, footprint
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, read_binary_brep,
@@ -79,6 +80,10 @@ class BRepEngine:
     cells: list[Cell] = field(default_factory=list)
     stock_volume: float = 0.0
     removed_total: float = 0.0
+    # the material's height bounds, and the cell list they were built for: a new list (start,
+    # checkpoint, a parallel worker's cells) gets fresh bounds, since old ones may claim too much air
+    _ceiling: MaterialCeiling | None = field(default=None, init=False, repr=False)
+    _ceiling_cells: list[Cell] | None = field(default=None, init=False, repr=False)
 
     # -- public -------------------------------------------------------------------------------
     def start(self, stock: Stock | TopoDS_Shape) -> None:
@@ -204,7 +209,15 @@ class BRepEngine:
         idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR
         sweep_box = bounding_box(sweep.shape)
         touched = [c for c in self.cells if c.shape is not None and boxes_overlap(sweep_box, c.box)]
+        ceiling = self._material_ceiling()
+        fp = footprint(motion, tool, clears=sweep.method != "sampled") if ceiling is not None else None
+        if touched and fp is not None:
+            touched = [c for c, may in zip(touched, ceiling.may_cut(fp, [c.box for c in touched])) if may]
+            timings["ceiling"] = (time.perf_counter() - t1) * 1e3
+            t1 = time.perf_counter()
         if not touched:
+            if fp is not None:
+                ceiling.clear(fp)
             return CutOutcome(idle, method=sweep.method, timings=timings), []
         try:
             # all cells are cut before any is changed: a failure leaves the IPW as it was
@@ -216,6 +229,8 @@ class BRepEngine:
                               reason=f"Boolean failed after retries: {exc}; shapes saved to {saved}"), []
         t2 = time.perf_counter()
         timings["boolean"] = (t2 - t1) * 1e3
+        if fp is not None:  # the cells are cut (below) or lose nothing: either way the sweep is gone
+            ceiling.clear(fp)
         results = [r for r in results if r[2] is not None]
         if not results:  # nothing removed: the tool only touches or misses the material
             return CutOutcome(idle, method=sweep.method, timings=timings), []
@@ -249,6 +264,19 @@ class BRepEngine:
         return outcome, contacts
 
     # -- internals ----------------------------------------------------------------------------
+    def _material_ceiling(self) -> MaterialCeiling | None:
+        """The height bounds of this engine's cells (None when switched off or no material is left)."""
+        if self.options.ceiling_pixel is None or self.options.sweep != "exact":
+            return None
+        if self._ceiling_cells is not self.cells:
+            boxes = [c.box for c in self.cells if c.box is not None]
+            self._ceiling_cells = self.cells
+            self._ceiling = None if not boxes else MaterialCeiling(
+                (min(b[0][0] for b in boxes), min(b[0][1] for b in boxes)),
+                (max(b[1][0] for b in boxes), max(b[1][1] for b in boxes)),
+                max(b[1][2] for b in boxes), self.options.ceiling_pixel)
+        return self._ceiling
+
     def _subtract(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float):
         """(removed volume, new IPW or None when nothing is removed, the Cut with its history).
 

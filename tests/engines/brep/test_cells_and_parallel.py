@@ -51,7 +51,8 @@ def conserved(engine):
 
 @pytest.fixture(scope="module")
 def whole():
-    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=None, fuzzy=1e-6))
+    """The reference: one piece, and every Boolean run (no height bounds)."""
+    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=None, fuzzy=1e-6, ceiling_pixel=None))
     maps = list(engine.run(program(), STOCK))
     assert sum(m.status == CLStatus.ENGAGED for m in maps) > 20
     return maps
@@ -67,6 +68,17 @@ def test_cells_equal_the_whole_workpiece(whole, cell_size):
     # at least one CL really was cut in two cells and joined again
     assert any(len(s.intervals) == 1 and s.intervals[0].exit - s.intervals[0].entry > 90 for m in fast
                for s in m.slices)
+
+
+@pytest.mark.parametrize("cell_size", [None, 20.0])
+def test_height_bounds_skip_air_and_change_nothing(whole, cell_size):
+    engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=cell_size, fuzzy=1e-6))
+    fast = list(engine.run(program(), STOCK))
+    assert_same(fast, whole)
+    conserved(engine)
+    # the trochoid's return arcs run through its own cleared slot: no Boolean at all there
+    skipped = [m for m in fast if "ceiling" in dict(m.timings_ms) and "boolean" not in dict(m.timings_ms)]
+    assert len(skipped) >= 5
 
 
 def test_cells_equal_the_whole_workpiece_on_a_helical_entry():
