@@ -8,9 +8,12 @@ The IPW is kept as a grid of **cells** (``EngineOptions.cell_size`` mm square co
 stock height; ``None``: one cell, the whole IPW). A CL touches only the cells its sweep's bounding box
 overlaps, so each Boolean works on a bounded piece whatever the program's length: measured in
 ../shared/notes, whole-IPW Booleans grow with the faces an adaptive path leaves behind, cells keep
-the cost flat. Arcs split at a cell wall are joined again when the slices are merged. Faces of a
-cell on the same surface are merged whenever its face count grew by ``merge_growth`` since its last
-merge (without merging the IPW fragments and every Boolean slows down).
+the cost flat. Of those, a cell skips its Booleans when the material's height bounds
+(:mod:`fusioncut.engines.ceiling`) prove the sweep removes nothing there: a CL that runs through
+material already cut away costs no Boolean. Arcs split at a cell wall are joined again when the
+slices are merged. Faces of a cell on the same surface are merged whenever its face count grew by
+``merge_growth`` since its last merge (without merging the IPW fragments and every Boolean slows
+down).
 
 A failed Boolean is retried with fuzzy values; if it still fails the CL is reported FAILED with the
 reason, both shapes are written as .brep for reproduction, the IPW stays as it was and the run goes
