@@ -17,7 +17,8 @@ def test_benchmark_tiny_runs_and_reports(tmp_path):
     assert all(v <= 1e-6 for v in report["conservation"].values())
     for row in report["operations"].values():
         assert row["slice_1"]["processed"] <= row["cls"]
-        assert row["baseline_median_ms"] is None or row["baseline_median_ms"] > 0
+        # every operation gets baseline CLs, the windows run on through links in the air
+        assert row["baseline_median_ms"] > 0 and row["sum_ratio"] > 0
     assert report["parallel_seconds"][1] > 0
 
 
