@@ -128,17 +128,21 @@ def footprint(motion: Move, tool: MillingTool, clears: bool = True) -> SweepFoot
         end = (cx + rho * math.cos(a0 + motion.sweep), cy + rho * math.sin(a0 + motion.sweep))
         off = math.hypot(x1 - end[0], y1 - end[1])
         arc = dict(center=(cx, cy), rho=rho, start_angle=a0, sweep=motion.sweep)
+        # an arc within 1e-9 mm of level is swept at its start's height, with the tool itself at its end
+        z_low, z_high = min(z0, z1), max(z0, z1)
         if r_clear is not None and clears and r_clear > off:
-            return SweepFootprint((x0, y0), end, z0, reach + off, **arc, r_clear=r_clear - off, z_clear=z0,
-                                  z_top=z0 + length)
-        return SweepFootprint((x0, y0), end, z0, reach + off, **arc)
+            return SweepFootprint((x0, y0), end, z_low, reach + off, **arc, r_clear=r_clear - off,
+                                  z_clear=z_high, z_top=z_low + length)
+        return SweepFootprint((x0, y0), end, z_low, reach + off, **arc)
     if not isinstance(motion, LinearMove):
         return None
     z_low = min(z0, z1)
     vertical = x0 == x1 and y0 == y1
     if r_clear is not None and clears and (vertical or abs(z1 - z0) <= _FLAT):
-        return SweepFootprint((x0, y0), (x1, y1), z_low, reach, r_clear=r_clear, z_clear=max(z0, z1) if not vertical else z_low,
-                              z_top=z_low + length)
+        # a plunge removes the cylinder from its lowest tip up; a level move is swept at its start's
+        # height, within 1e-12 mm of the higher end
+        return SweepFootprint((x0, y0), (x1, y1), z_low, reach, r_clear=r_clear,
+                              z_clear=z_low if vertical else max(z0, z1), z_top=z_low + length)
     return SweepFootprint((x0, y0), (x1, y1), z_low, reach)
 
 
