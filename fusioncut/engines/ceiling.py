@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -96,9 +97,11 @@ def _segment_distance(X: np.ndarray, Y: np.ndarray, p0: tuple[float, float], p1:
     return np.hypot(X - (p0[0] + t * dx), Y - (p0[1] + t * dy))
 
 
+@lru_cache(maxsize=64)
 def tool_radii(tool: MillingTool) -> tuple[float, float | None, float]:
     """(reach, clear radius or None, length) of a tool (mm); see the module docstring."""
-    segs = tool.profile().segments
+    profile = tool.profile()
+    segs = profile.segments
     reach = max(s.center[0] + s.radius if isinstance(s, ProfileArc) else max(s.start[0], s.end[0]) for s in segs)
     first = segs[0]
     flat_tip = (not isinstance(first, ProfileArc) and first.start == (0.0, 0.0) and first.end[1] == 0.0
@@ -108,7 +111,7 @@ def tool_radii(tool: MillingTool) -> tuple[float, float | None, float]:
     if flat_tip and rising and not any(isinstance(s, ProfileArc) for s in segs):
         r_clear = min([first.end[0], *(min(s.start[0], s.end[0]) for s in segs[1:-1])])
         r_clear = r_clear if r_clear > 0 else None
-    return reach, r_clear, tool.profile().height
+    return reach, r_clear, profile.height
 
 
 def footprint(motion: Move, tool: MillingTool, clears: bool = True) -> SweepFootprint | None:
