@@ -47,9 +47,10 @@ class SweepFootprint:
     """Where a sweep can be and what it surely removes, in the map's terms (mm, rad).
 
     The path is a segment ``p0``-``p1`` (a point when equal) or, when ``center`` is set, the arc of
-    radius ``rho`` about it from angle ``start_angle`` through the signed ``sweep``. ``z_low``: the tip's
-    lowest height; ``reach``: the tool's largest radius. ``z_clear``/``r_clear``/``z_top``: the tip height,
-    radius and top of the cylinder the sweep surely removes (``r_clear`` None: nothing proven).
+    radius ``rho`` about it from angle ``start_angle`` through the signed ``sweep``, from ``p0`` to ``p1``.
+    ``z_low``: the tip's lowest height; ``reach``: the tool's largest radius. ``z_clear``/``r_clear``/
+    ``z_top``: the tip height, radius and top of the cylinder the sweep surely removes (``r_clear``
+    None: nothing proven).
     """
 
     p0: tuple[float, float]
@@ -78,13 +79,11 @@ class SweepFootprint:
         if self.center is None:
             return _segment_distance(X, Y, self.p0, self.p1)
         cx, cy = self.center
-        ends = [(cx + self.rho * math.cos(a), cy + self.rho * math.sin(a))
-                for a in (self.start_angle, self.start_angle + self.sweep)]
-        d_ends = np.minimum(np.hypot(X - ends[0][0], Y - ends[0][1]), np.hypot(X - ends[1][0], Y - ends[1][1]))
-        if abs(self.sweep) >= 2 * math.pi:
-            return np.abs(np.hypot(X - cx, Y - cy) - self.rho)
-        rel = (np.arctan2(Y - cy, X - cx) - self.start_angle) * math.copysign(1.0, self.sweep) % (2 * math.pi)
         on_arc = np.abs(np.hypot(X - cx, Y - cy) - self.rho)
+        if abs(self.sweep) >= 2 * math.pi:
+            return on_arc
+        rel = (np.arctan2(Y - cy, X - cx) - self.start_angle) * math.copysign(1.0, self.sweep) % (2 * math.pi)
+        d_ends = np.minimum(np.hypot(X - self.p0[0], Y - self.p0[1]), np.hypot(X - self.p1[0], Y - self.p1[1]))
         return np.where(rel <= abs(self.sweep), on_arc, d_ends)
 
 
