@@ -2,7 +2,8 @@
 
 Per CL segment: exact swept volume -> removed = IPW ∩ sweep and IPW = IPW − sweep from one shared
 intersection (``BOPAlgo_PaveFiller``) -> contact faces = images of the sweep's faces in the new IPW that
-lie on the tool at the end CL -> slicing.
+lie on the tool at the end CL and were not already on the IPW's boundary (a wall the tool only grazes
+loses nothing, so it is no engagement) -> slicing.
 
 The IPW is kept as a grid of **cells** (``EngineOptions.cell_size`` mm square columns over the full
 stock height; ``None``: one cell, the whole IPW). A CL touches only the cells its sweep's bounding box
@@ -247,12 +248,15 @@ class BRepEngine:
         try:
             candidates = []
             sweep_faces = list(faces(sweep.shape))
+            own = face_map(sweep.shape)
             for _, _, new_shape, cut in results:
                 kept = None if new_shape.IsSame(cut.Shape()) else face_map(new_shape)  # slivers dropped
+                origins = cut.Origins()
                 for f in sweep_faces:
                     images = cut.Modified(f)
                     found = [TopoDS.Face(s) for s in images] if images.Size() else [] if cut.IsDeleted(f) else [f]
-                    candidates.extend(g for g in found if kept is None or kept.Contains(g))
+                    candidates.extend(g for g in found if (kept is None or kept.Contains(g))
+                                      and not _on_old_boundary(g, origins, own))
             contacts = find_contact_faces(candidates, tool, move.end)
             flute = [c for c in contacts if c.surface.zone == "flute"]
             outcome.flute_area = sum(c.area for c in flute)
@@ -363,6 +367,18 @@ class BRepEngine:
         write_brep(self.ipw, str(folder / f"cl{index:06d}_ipw.brep"))
         write_brep(sweep, str(folder / f"cl{index:06d}_sweep.brep"))
         return str(folder / f"cl{index:06d}_*.brep")
+
+
+def _on_old_boundary(face, origins, sweep_faces) -> bool:
+    """Whether a face of the new IPW also comes from a face the IPW already had (the kernel merged
+    the two coincident faces into one).
+
+    There the tool only grazes a wall left by an earlier cut: it removes nothing, the chip is zero
+    thick, so it is no engagement. Seen on the benchmark's second depth level, which retraces the
+    first level's trochoids: the tool at 4-7 mm above its tip lay on the first level's walls and
+    reported 5-15° arcs there, 32 of 821 adaptive CLs, which force models would have read as cutting.
+    """
+    return origins.IsBound(face) and any(not sweep_faces.Contains(s) for s in origins.Find(face))
 
 
 def cl_sequence(toolpath: Toolpath, options: EngineOptions, default_tool: MillingTool | None = None,
