@@ -49,7 +49,8 @@ removed_volume_mm3       float64   mm³      material removed by the segment
 mrr_mm3_min              float64   mm³/min  removed volume / (length / feed); NaN for rapids, failed CLs,
                                             unknown feed or zero length
 sweep_method             string    -        exact, sampled, or step (a piece of a ramp or helix swept level at
-                                            its end height, within ramp_step)
+                                            its end height, within ramp_step); empty when no sweep was built
+                                            (no material within the tool's reach)
 time_ms                  float64   ms       engine compute time of the CL (its "total" timing)  
 ======================== ========= ======== ================================================================
 
@@ -179,7 +180,7 @@ CL_COLUMNS: tuple[Column, ...] = (
     _c("mrr_mm3_min", "float64", "mm^3/min",
        "removed volume / (length / feed); NaN for rapids, failed CLs, unknown feed or zero length"),
     _c("sweep_method", "string", "", "how the swept volume was built: exact, step (ramp or helix piece swept level at its "
-       "end height, within ramp_step) or sampled"),
+       "end height, within ramp_step) or sampled; empty when no sweep was built (no material within reach)"),
     _c("time_ms", "float64", "ms", "engine compute time of the CL"),
 )
 

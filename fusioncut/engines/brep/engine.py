@@ -35,7 +35,7 @@ from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_Operation, BOPAlgo_PaveFiller
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
-from fusioncut.engines.ceiling import MaterialCeiling, footprint
+from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, read_binary_brep,
@@ -201,28 +201,43 @@ class BRepEngine:
         seam = math.radians(feed_angle) + math.pi  # seams behind the tool, away from the engaged side
         # a piece of a ramp or helix is swept as a step (see fusioncut.engines.segments); the
         # published method's sampled copies follow the move itself
-        motion = step_motion(move) if self.options.sweep == "exact" else move
+        exact = self.options.sweep == "exact"
+        motion = step_motion(move) if exact else move
+        idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR
+        ceiling = self._material_ceiling()
+        fp = footprint(motion, tool) if exact else None
+        # before the sweep is built (a ball end mill's costs 5 ms): the cells within the tool's reach
+        # of the path that may hold material the sweep could remove
+        candidates = [c for c in self.cells if c.shape is not None]
+        if fp is not None:
+            reach = _reach_box(fp, motion, tool)
+            candidates = [c for c in candidates if boxes_overlap(reach, c.box)]
+            if candidates and ceiling is not None:
+                candidates = [c for c, may in zip(candidates, ceiling.may_cut(fp, [c.box for c in candidates])) if may]
+            if not candidates:
+                if ceiling is not None:
+                    ceiling.clear(fp)  # the exact sweep holds no material, so nothing is left in it either
+                timings["ceiling"] = (time.perf_counter() - t0) * 1e3
+                return CutOutcome(idle, timings=timings), []  # no sweep built: no method to report
+        t1 = time.perf_counter()
+        timings["ceiling"] = (t1 - t0) * 1e3
         try:
             sweep = swept_volume(tool, motion, self.options.sweep, seam)
         except Exception as exc:  # noqa: BLE001 - kernel failures become a FAILED CL, never a crash
             return CutOutcome(CLStatus.FAILED, reason=f"sweep construction failed: {exc}", timings=timings), []
         if motion is not move and sweep.method == "exact":
             sweep = replace(sweep, method="step")
-        t1 = time.perf_counter()
-        timings["sweep"] = (t1 - t0) * 1e3
-        idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR
+        if fp is not None and sweep.method == "sampled":
+            fp = replace(fp, r_clear=None)  # a sampled sweep's scallops prove nothing removed
+        t2 = time.perf_counter()
+        timings["sweep"] = (t2 - t1) * 1e3
         sweep_box = bounding_box(sweep.shape)
-        touched = [c for c in self.cells if c.shape is not None and boxes_overlap(sweep_box, c.box)]
-        ceiling = self._material_ceiling()
-        fp = footprint(motion, tool, clears=sweep.method != "sampled") if ceiling is not None else None
-        if touched and fp is not None:
-            touched = [c for c, may in zip(touched, ceiling.may_cut(fp, [c.box for c in touched])) if may]
-            timings["ceiling"] = (time.perf_counter() - t1) * 1e3
-            t1 = time.perf_counter()
+        touched = [c for c in candidates if boxes_overlap(sweep_box, c.box)]
         if not touched:
-            if fp is not None:
+            if fp is not None and ceiling is not None:
                 ceiling.clear(fp)
             return CutOutcome(idle, method=sweep.method, timings=timings), []
+        t1 = t2
         try:
             # all cells are cut before any is changed: a failure leaves the IPW as it was
             results = [(c, *self._subtract(c.shape, sweep.shape, c.volume)) for c in touched]
@@ -233,7 +248,7 @@ class BRepEngine:
                               reason=f"Boolean failed after retries: {exc}; shapes saved to {saved}"), []
         t2 = time.perf_counter()
         timings["boolean"] = (t2 - t1) * 1e3
-        if fp is not None:  # the cells are cut (below) or lose nothing: either way the sweep is gone
+        if fp is not None and ceiling is not None:  # the cells are cut (below) or lose nothing: the sweep is gone
             ceiling.clear(fp)
         results = [r for r in results if r[2] is not None]
         if not results:  # nothing removed: the tool only touches or misses the material
@@ -367,6 +382,13 @@ class BRepEngine:
         write_brep(self.ipw, str(folder / f"cl{index:06d}_ipw.brep"))
         write_brep(sweep, str(folder / f"cl{index:06d}_sweep.brep"))
         return str(folder / f"cl{index:06d}_*.brep")
+
+
+def _reach_box(fp, motion: Move, tool: MillingTool) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """A box (mm) around everything the tool's sweep along ``motion`` can reach, with 1e-6 mm to spare."""
+    x0, y0, x1, y1 = fp.box(fp.reach + 1e-6)
+    top = max(motion.start[2], motion.end[2]) + tool_radii(tool)[2]
+    return (x0, y0, fp.z_low - 1e-6), (x1, y1, top + 1e-6)
 
 
 def _on_old_boundary(face, origins, sweep_faces) -> bool:

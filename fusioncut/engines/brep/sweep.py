@@ -4,8 +4,9 @@ A tool of revolution moved by translation sweeps, in every horizontal slice, a d
 radius along the path's projection. That gives exact constructions without sampling:
 
 * **horizontal line**: back half of the tool at the start, prism of the full axial section (the
-  plane through the axis perpendicular to the move), front half at the end. The three pieces share
-  whole faces, so a glued fuse joins them cheaply. Exact for any profile.
+  plane through the axis perpendicular to the move), front half at the end. The three pieces meet
+  in whole faces, so their outer faces are sewn into one solid (see :func:`_glued`). Exact for any
+  profile.
 * **arc in the XY plane** (axis parallel to the tool axis): tool(start), tool(end) and the revolution
   about the arc axis of the axial section through both axes (clipped to the arc axis when the tool
   covers it). Exact for any profile.
@@ -33,14 +34,22 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 
+from OCP.BRepAdaptor import BRepAdaptor_Surface
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
-from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeWire
+from OCP.BRepBuilderAPI import (
+    BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeSolid, BRepBuilderAPI_MakeWire,
+    BRepBuilderAPI_Sewing,
+)
+from OCP.BRepLib import BRepLib
 from OCP.GC import GC_MakeArcOfCircle
+from OCP.GeomAbs import GeomAbs_Plane
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakePrism, BRepPrimAPI_MakeRevol
 from OCP.gp import gp_Ax1, gp_Ax2, gp_Circ, gp_Dir, gp_Vec
-from OCP.TopoDS import TopoDS_Shape
+from OCP.TopAbs import TopAbs_SHELL
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 
-from fusioncut.engines.brep.occ import fuse_all, placement, planar_face, pnt, solids, wire_from_points
+from fusioncut.engines.brep.occ import faces, fuse_all, placement, planar_face, pnt, solids, unify, wire_from_points
 from fusioncut.model.moves import ArcMove, ArcPlane, Move
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProfile
 
@@ -124,7 +133,57 @@ def _horizontal_line(tool: MillingTool, p0: Vec3, p1: Vec3) -> TopoDS_Shape:
     back = _revolve(half_section(prof, p0, n), p0, math.pi)
     body = _prism(full_section(prof, p0, n), (L * d[0], L * d[1], 0.0))
     front = _revolve(half_section(prof, p1, (-n[0], -n[1], 0.0)), p1, math.pi)
-    return fuse_all([back, body, front], glue=True)
+    return _glued([back, body, front], [(p0, d), (p1, d)])
+
+
+def _glued(pieces: list[TopoDS_Shape], joints: list[tuple[Vec3, Vec3]]) -> TopoDS_Shape:
+    """The union of solids that meet only in whole planar faces, each lying in a vertical plane
+    through a joint's point with the joint's horizontal normal.
+
+    The outer faces are sewn into one solid and faces on one surface merged. Measured on a 6 mm ball
+    end mill's 1 mm line: 4–6 ms against 14 ms for the glued fuse this replaces, the same volume and
+    faces. If the faces do not close into one valid solid, the glued fuse does it.
+    """
+    solid = _sewn_solid([f for piece in pieces for f in faces(piece) if not _on_joint(f, joints)])
+    if solid is not None:
+        merged = unify(solid)
+        if _sound(merged):
+            return merged
+    return fuse_all(pieces, glue=True)
+
+
+def _sewn_solid(face_list: list[TopoDS_Face]) -> TopoDS_Shape | None:
+    """The solid bounded by faces that meet edge to edge (within 1e-7 mm), or None if they do not
+    close a shell."""
+    sewing = BRepBuilderAPI_Sewing(1e-7)
+    for face in face_list:
+        sewing.Add(face)
+    sewing.Perform()
+    exp = TopExp_Explorer(sewing.SewedShape(), TopAbs_SHELL)
+    if not exp.More():
+        return None
+    solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell(exp.Current())).Solid()
+    BRepLib.OrientClosedSolid_s(solid)
+    return solid
+
+
+def _on_joint(face: TopoDS_Face, joints: list[tuple[Vec3, Vec3]]) -> bool:
+    surface = BRepAdaptor_Surface(face, False)
+    if surface.GetType() != GeomAbs_Plane:
+        return False
+    plane = surface.Plane()
+    o, n = plane.Location(), plane.Axis().Direction()
+    for p, d in joints:
+        if abs(n.X() * d[1] - n.Y() * d[0]) < 1e-9 and abs(n.Z()) < 1e-9 and \
+                abs((o.X() - p[0]) * d[0] + (o.Y() - p[1]) * d[1] + (o.Z() - p[2]) * d[2]) < 1e-9:
+            return True
+    return False
+
+
+def _sound(shape: TopoDS_Shape) -> bool:
+    from OCP.BRepCheck import BRepCheck_Analyzer
+
+    return len(solids(shape)) == 1 and BRepCheck_Analyzer(shape).IsValid()
 
 
 def cylinder_tool(tool: MillingTool) -> tuple[float, float] | None:
@@ -193,12 +252,8 @@ def _cylinder_ramp(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape | Non
     the bottom circle ruled along the move. No Boolean: a fuse of the tool copies and prisms (the
     general ramp) is slow and breaks down on short chords where the copies nearly coincide.
     """
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeSolid, BRepBuilderAPI_MakePolygon, BRepBuilderAPI_Sewing
-    from OCP.BRepLib import BRepLib
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakePolygon
     from OCP.gp import gp_Ax3, gp_Cylinder
-    from OCP.TopAbs import TopAbs_SHELL
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
 
     a, b = (p0, p1) if p0[2] >= p1[2] else (p1, p0)
     v = (b[0] - a[0], b[1] - a[1], b[2] - a[2])
@@ -228,17 +283,8 @@ def _cylinder_ramp(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape | Non
         return BRepBuilderAPI_MakeFace(poly.Wire(), True).Face()
 
     minus_n = (-n[0], -n[1], 0.0)
-    sewing = BRepBuilderAPI_Sewing(1e-7)
-    for face in (half_cylinder(a, n), half_cylinder(b, minus_n), side(1.0), side(-1.0), disk(_add(a, up)), disk(b),
-                 ruled(_add(a, up), minus_n), ruled(a, n)):
-        sewing.Add(face)
-    sewing.Perform()
-    exp = TopExp_Explorer(sewing.SewedShape(), TopAbs_SHELL)
-    if not exp.More():
-        return None
-    solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell(exp.Current())).Solid()
-    BRepLib.OrientClosedSolid_s(solid)
-    return solid
+    return _sewn_solid([half_cylinder(a, n), half_cylinder(b, minus_n), side(1.0), side(-1.0), disk(_add(a, up)),
+                        disk(b), ruled(_add(a, up), minus_n), ruled(a, n)])
 
 
 def _arc_xy(tool: MillingTool, move: ArcMove, seam: float) -> TopoDS_Shape:
@@ -255,7 +301,8 @@ def _arc_xy(tool: MillingTool, move: ArcMove, seam: float) -> TopoDS_Shape:
         back = _revolve(half_section(prof, p0, a0), p0, -sgn * math.pi)
         ring = _revolve(full_section(prof, p0, a0), axis_pt, theta)
         front = _revolve(half_section(prof, p1, a1), p1, sgn * math.pi)
-        return fuse_all([back, ring, front], glue=True)
+        # the ring's end sections: the radial planes at the arc's ends, normal to their tangents
+        return _glued([back, ring, front], [(p0, (-a0[1], a0[0], 0.0)), (p1, (-a1[1], a1[0], 0.0))])
     section = full_section(prof, p0, a0)
     if rho < r_max:
         # keep only the part of the section on the tool's side of the arc axis: the rest sweeps

@@ -11,7 +11,8 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep import engine as engine_mod
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.segments import cl_segments
-from fusioncut.model import ArcMove, BoxStock, CLStatus, FlatEndMill, LinearMove, Toolpath
+from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CLStatus, FlatEndMill, LinearMove,
+                             TaperedEndMill, Toolpath)
 
 TOOL = FlatEndMill(6, 15)
 STOCK = BoxStock((0, 0, -10), (40, 30, 0))
@@ -82,3 +83,35 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
     assert failed[0].cl_index < maps[-1].cl_index  # the run went on
     # what the later CLs removed still adds up
     assert STOCK.volume - eng.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-6)
+
+
+REACH_TOOLS = [FlatEndMill(6, 15), BallEndMill(8, 20), BullNoseEndMill(10, 20, corner_radius=2),
+               TaperedEndMill(6, 20, taper_angle=5), FlatEndMill(8, 15, shank_diameter=10, overall_length=40)]
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(tool=st.sampled_from(REACH_TOOLS), kind=st.sampled_from(["line", "ramp", "plunge", "arc"]),
+       p=st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(-10, 5)),
+       d=st.tuples(st.floats(-15, 15), st.floats(-15, 15), st.floats(-5, 5)), sweep=st.floats(-6.2, 6.2))
+def test_the_reach_box_holds_the_whole_sweep(tool, kind, p, d, sweep):
+    """CLs whose reach box meets no material build no sweep, so the box must hold every sweep."""
+    import math
+
+    from fusioncut.engines.brep.occ import bounding_box
+    from fusioncut.engines.brep.sweep import swept_volume
+    from fusioncut.engines.ceiling import footprint
+    from fusioncut.engines.segments import step_motion
+
+    end = {"line": (p[0] + d[0], p[1] + d[1], p[2]), "ramp": (p[0] + d[0], p[1] + d[1], p[2] + d[2]),
+           "plunge": (p[0], p[1], p[2] + d[2])}.get(kind)
+    if kind == "arc":
+        c = (p[0] + d[0], p[1] + d[1], p[2])
+        rho, a0 = math.hypot(p[0] - c[0], p[1] - c[1]), math.atan2(p[1] - c[1], p[0] - c[0])
+        end = (c[0] + rho * math.cos(a0 + sweep), c[1] + rho * math.sin(a0 + sweep), p[2])
+        move = ArcMove(p, end, center=c, clockwise=sweep < 0, feed=500, tool=1)
+    else:
+        move = LinearMove(p, end, feed=500, tool=1)
+    motion = step_motion(move)
+    lo, hi = engine_mod._reach_box(footprint(motion, tool), motion, tool)
+    slo, shi = bounding_box(swept_volume(tool, motion).shape, exact=True)
+    assert all(lo[k] <= slo[k] and shi[k] <= hi[k] for k in range(3))

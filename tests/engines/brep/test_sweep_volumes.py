@@ -130,3 +130,29 @@ def test_arc_tighter_than_the_tool_matches_the_slice_wise_area():
                 inside += 1
     grid_area = inside * step * step
     assert volume(sv.shape) / H == pytest.approx(grid_area, rel=2e-3)
+
+
+@pytest.mark.parametrize("name", ["ball", "bullnose", "tapered", "apt"])
+def test_lines_and_arcs_are_sewn_without_a_boolean(name, monkeypatch):
+    """The pieces of a line's or a wide arc's sweep meet in whole faces: their outer faces close into
+    one valid solid of the closed-form volume, with faces on one surface merged (a ball's line: 8
+    faces), and the glued fuse is never needed."""
+    from OCP.BRepCheck import BRepCheck_Analyzer
+
+    from fusioncut.engines.brep import sweep as sweep_module
+    from fusioncut.engines.brep.occ import count_faces
+
+    def no_fuse(*args, **kwargs):
+        raise AssertionError("the sweep fell back to a fuse")
+
+    monkeypatch.setattr(sweep_module, "fuse_all", no_fuse)
+    tool = TOOLS[name]
+    section = area(full_section(tool.profile(), (0, 0, 0), (1, 0, 0)))
+    line = swept_volume(tool, LinearMove((1, 2, 3), (1.3, 2.9, 3)))
+    arc = ArcMove((20.0, 0.0, -1.0), (0.0, -20.0, -1.0), center=(0.0, 0.0, -1.0), clockwise=True)
+    ring = swept_volume(tool, arc)
+    for sv, travel in ((line, math.hypot(0.3, 0.9)), (ring, 20.0 * math.pi / 2)):
+        assert BRepCheck_Analyzer(sv.shape).IsValid()
+        assert volume(sv.shape) == pytest.approx(volume(tool_solid(tool)) + travel * section, rel=REL)
+    if name == "ball":
+        assert count_faces(line.shape) == 8
