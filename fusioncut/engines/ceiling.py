@@ -113,10 +113,10 @@ def tool_radii(tool: MillingTool) -> tuple[float, float | None, float]:
     return reach, r_clear, profile.height
 
 
-def footprint(motion: Move, tool: MillingTool, clears: bool = True) -> SweepFootprint | None:
-    """The footprint of the sweep of ``tool`` along ``motion`` (what the engine sweeps), or None for
-    motions the map does not describe (helices, ZX/YZ arcs). ``clears``: the sweep is exact (a sampled
-    one leaves scallops, so it proves nothing removed)."""
+def footprint(motion: Move, tool: MillingTool) -> SweepFootprint | None:
+    """The footprint of the exact sweep of ``tool`` along ``motion`` (what the engine sweeps), or None
+    for motions the map does not describe (helices, ZX/YZ arcs). A sampled sweep leaves scallops, so
+    it proves nothing removed: its caller drops ``r_clear``."""
     reach, r_clear, length = tool_radii(tool)
     (x0, y0, z0), (x1, y1, z1) = motion.start, motion.end
     if isinstance(motion, ArcMove):
@@ -132,7 +132,7 @@ def footprint(motion: Move, tool: MillingTool, clears: bool = True) -> SweepFoot
         arc = dict(center=(cx, cy), rho=rho, start_angle=a0, sweep=motion.sweep)
         # an arc within 1e-9 mm of level is swept at its start's height, with the tool itself at its end
         z_low, z_high = min(z0, z1), max(z0, z1)
-        if r_clear is not None and clears and r_clear > off:
+        if r_clear is not None and r_clear > off:
             return SweepFootprint((x0, y0), end, z_low, reach + off, **arc, r_clear=r_clear - off,
                                   z_clear=z_high, z_top=z_low + length)
         return SweepFootprint((x0, y0), end, z_low, reach + off, **arc)
@@ -140,7 +140,7 @@ def footprint(motion: Move, tool: MillingTool, clears: bool = True) -> SweepFoot
         return None
     z_low = min(z0, z1)
     vertical = x0 == x1 and y0 == y1
-    if r_clear is not None and clears and (vertical or abs(z1 - z0) <= _FLAT):
+    if r_clear is not None and (vertical or abs(z1 - z0) <= _FLAT):
         # a plunge removes the cylinder from its lowest tip up; a level move is swept at its start's
         # height, within 1e-12 mm of the higher end
         return SweepFootprint((x0, y0), (x1, y1), z_low, reach, r_clear=r_clear,

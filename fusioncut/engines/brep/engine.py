@@ -11,7 +11,8 @@ overlaps, so each Boolean works on a bounded piece whatever the program's length
 ../shared/notes, whole-IPW Booleans grow with the faces an adaptive path leaves behind, cells keep
 the cost flat. Of those, a cell skips its Booleans when the material's height bounds
 (:mod:`fusioncut.engines.ceiling`) prove the sweep removes nothing there: a CL that runs through
-material already cut away costs no Boolean. Arcs split at a cell wall are joined again when the
+material already cut away costs no Boolean. Both tests run on the tool's reach around the path
+before the sweep is built, so such a CL does not build one either. Arcs split at a cell wall are joined again when the
 slices are merged. Faces of a cell on the same surface are merged whenever its face count grew by
 ``merge_growth`` since its last merge (without merging the IPW fragments and every Boolean slows
 down).

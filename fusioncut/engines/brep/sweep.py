@@ -36,6 +36,7 @@ from functools import lru_cache
 
 from OCP.BRepAdaptor import BRepAdaptor_Surface
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepBuilderAPI import (
     BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeSolid, BRepBuilderAPI_MakeWire,
     BRepBuilderAPI_Sewing,
@@ -168,6 +169,7 @@ def _sewn_solid(face_list: list[TopoDS_Face]) -> TopoDS_Shape | None:
 
 
 def _on_joint(face: TopoDS_Face, joints: list[tuple[Vec3, Vec3]]) -> bool:
+    """Whether ``face`` is planar and lies in a joint's plane (within 1e-9 mm and 1e-9 rad)."""
     surface = BRepAdaptor_Surface(face, False)
     if surface.GetType() != GeomAbs_Plane:
         return False
@@ -181,8 +183,6 @@ def _on_joint(face: TopoDS_Face, joints: list[tuple[Vec3, Vec3]]) -> bool:
 
 
 def _sound(shape: TopoDS_Shape) -> bool:
-    from OCP.BRepCheck import BRepCheck_Analyzer
-
     return len(solids(shape)) == 1 and BRepCheck_Analyzer(shape).IsValid()
 
 
