@@ -116,3 +116,15 @@ def test_the_reach_box_holds_the_whole_sweep(tool, kind, p, d, sweep):
     lo, hi = engine_mod._reach_box(footprint(motion, tool), motion, tool)
     slo, shi = bounding_box(swept_volume(tool, motion).shape, exact=True)
     assert all(lo[k] <= slo[k] and shi[k] <= hi[k] for k in range(3))
+
+
+def test_a_move_with_no_material_in_reach_builds_no_sweep():
+    """A rapid above the stock and a feed beside it: air without a sweep, so no sweep method to report;
+    the cut between them builds its sweep."""
+    moves = (LinearMove((-10, 5, 5), (50, 5, 5), tool=1, rapid=True),
+             LinearMove((-10, 5, -1), (10, 5, -1), feed=800, tool=1),
+             LinearMove((-10, -20, -1), (50, -20, -1), feed=800, tool=1))
+    maps = list(BRepEngine(EngineOptions(max_segment_length=100.0)).run(Toolpath(moves, {1: TOOL}), STOCK))
+    assert [m.status for m in maps] == [CLStatus.RAPID, CLStatus.ENGAGED, CLStatus.AIR]
+    assert [m.sweep_method for m in maps] == ["", "exact", ""]
+    assert "sweep" not in dict(maps[0].timings_ms) and "sweep" in dict(maps[1].timings_ms)
