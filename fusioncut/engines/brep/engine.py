@@ -12,10 +12,10 @@ overlaps, so each Boolean works on a bounded piece whatever the program's length
 the cost flat. Of those, a cell skips its Booleans when the material's height bounds
 (:mod:`fusioncut.engines.ceiling`) prove the sweep removes nothing there: a CL that runs through
 material already cut away costs no Boolean. Both tests run on the tool's reach around the path
-before the sweep is built, so such a CL does not build one either. Arcs split at a cell wall are joined again when the
-slices are merged. Faces of a cell on the same surface are merged whenever its face count grew by
-``merge_growth`` since its last merge (without merging the IPW fragments and every Boolean slows
-down).
+before the sweep is built, so such a CL does not build one either. Arcs split at a cell wall are
+joined again when the slices are merged. Faces of a cell on the same surface are merged whenever
+its face count grew by ``merge_growth`` since its last merge (without merging the IPW fragments and
+every Boolean slows down).
 
 A failed Boolean is retried with fuzzy values; if it still fails the CL is reported FAILED with the
 reason, both shapes are written as .brep for reproduction, the IPW stays as it was and the run goes
@@ -215,13 +215,12 @@ class BRepEngine:
             candidates = [c for c in candidates if boxes_overlap(reach, c.box)]
             if candidates and ceiling is not None:
                 candidates = [c for c, may in zip(candidates, ceiling.may_cut(fp, [c.box for c in candidates])) if may]
-            if not candidates:
-                if ceiling is not None:
-                    ceiling.clear(fp)  # the exact sweep holds no material, so nothing is left in it either
-                timings["ceiling"] = (time.perf_counter() - t0) * 1e3
-                return CutOutcome(idle, timings=timings), []  # no sweep built: no method to report
         t1 = time.perf_counter()
         timings["ceiling"] = (t1 - t0) * 1e3
+        if fp is not None and not candidates:
+            if ceiling is not None:
+                ceiling.clear(fp)  # the exact sweep holds no material, so nothing is left in it either
+            return CutOutcome(idle, timings=timings), []  # no sweep built: no method to report
         try:
             sweep = swept_volume(tool, motion, self.options.sweep, seam)
         except Exception as exc:  # noqa: BLE001 - kernel failures become a FAILED CL, never a crash

@@ -1,6 +1,7 @@
 """Invariants: translating the whole job changes nothing; every CL is accounted for; failures are kept."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -10,7 +11,10 @@ from hypothesis import strategies as st
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep import engine as engine_mod
 from fusioncut.engines.brep.engine import BRepEngine
-from fusioncut.engines.segments import cl_segments
+from fusioncut.engines.brep.occ import bounding_box
+from fusioncut.engines.brep.sweep import swept_volume
+from fusioncut.engines.ceiling import footprint
+from fusioncut.engines.segments import cl_segments, step_motion
 from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CLStatus, FlatEndMill, LinearMove,
                              TaperedEndMill, Toolpath)
 
@@ -95,13 +99,6 @@ REACH_TOOLS = [FlatEndMill(6, 15), BallEndMill(8, 20), BullNoseEndMill(10, 20, c
        d=st.tuples(st.floats(-15, 15), st.floats(-15, 15), st.floats(-5, 5)), sweep=st.floats(-6.2, 6.2))
 def test_the_reach_box_holds_the_whole_sweep(tool, kind, p, d, sweep):
     """CLs whose reach box meets no material build no sweep, so the box must hold every sweep."""
-    import math
-
-    from fusioncut.engines.brep.occ import bounding_box
-    from fusioncut.engines.brep.sweep import swept_volume
-    from fusioncut.engines.ceiling import footprint
-    from fusioncut.engines.segments import step_motion
-
     end = {"line": (p[0] + d[0], p[1] + d[1], p[2]), "ramp": (p[0] + d[0], p[1] + d[1], p[2] + d[2]),
            "plunge": (p[0], p[1], p[2] + d[2])}.get(kind)
     if kind == "arc":
