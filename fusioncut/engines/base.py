@@ -46,6 +46,11 @@ class EngineOptions:
     (:class:`fusioncut.engines.ceiling.MaterialCeiling`), with which a cell whose material the sweep
     provably misses skips its Booleans; ``None`` runs every Boolean. Used with exact sweeps only; it
     changes no result, only the time.
+
+    ``layers``: keep cells that only cylindrical tools (flat end mills with the flute's diameter up
+    the shank) have cut horizontally or vertically as stacks of 2.5D layers, cut by 2D Booleans
+    (:mod:`fusioncut.engines.brep.layers`); the first other cut turns a cell into a solid for good.
+    Same material, same contact faces, fewer and cheaper kernel operations. Exact sweeps only.
     """
 
     slice_height: float = 1.0
@@ -60,6 +65,7 @@ class EngineOptions:
     cell_size: float | None = 20.0
     kernel_threads: bool = True
     ceiling_pixel: float | None = 0.1
+    layers: bool = True
 
 
 class EngagementEngine(Protocol):

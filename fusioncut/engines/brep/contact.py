@@ -21,7 +21,9 @@ from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve2d, BRepAdaptor_Surface
 from OCP.BRepTools import BRepTools
 from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Line, GeomAbs_Sphere, GeomAbs_Torus
-from OCP.TopoDS import TopoDS_Face
+from OCP.TopAbs import TopAbs_VERTEX
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopoDS import TopoDS, TopoDS_Face
 
 from fusioncut.engines.brep.occ import area, edges, faces
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine
@@ -233,10 +235,20 @@ def _split_by_zone(face, ts: ToolSurface, tsurfs: list[ToolSurface], tip, lo: fl
 
 
 def slice_intervals(contacts: list[ContactFace], tip: tuple[float, float, float], z: float) -> list[tuple[float, float]]:
-    """Machine-frame engaged arcs (rad, counter-clockwise ``(start, span)``) at height ``z`` above the tip."""
+    """Machine-frame engaged arcs (rad, counter-clockwise ``(start, span)``) at height ``z`` above the tip.
+
+    At the height of a step in the material (a corner of a contact face within 1e-9 mm of ``z``,
+    such as the 0.05 mm steps of a helical entry's floor) the arcs are read 1e-7 mm below it: there
+    the engagement jumps, and which side a slice exactly on the step reads would otherwise depend on
+    the last bit of its height, and on whether the kernel kept the faces above and below as one.
+    """
+    if any(abs(zv - tip[2] - z) < 1e-9 for cf in contacts for zv in _corner_heights(cf.face)):
+        z -= 1e-7
     arcs: list[tuple[float, float]] = []
     for cf in contacts:
-        if not (cf.z_range[0] < z < cf.z_range[1]):
+        # half-open like the scan line's rule at vertices: faces stacked in z (a layered cell's
+        # contact patches) meet at their boundary height, and the lower one holds it
+        if not (cf.z_range[0] < z <= cf.z_range[1]):
             continue
         face = cf.face
         surf = BRepAdaptor_Surface(face, False)
@@ -272,6 +284,16 @@ def slice_intervals(contacts: list[ContactFace], tip: tuple[float, float, float]
             start = ta if ccw else ta - span
             arcs.append((start % TWO_PI, span))
     return merge_arcs(arcs)
+
+
+def _corner_heights(face: TopoDS_Face) -> list[float]:
+    """Machine z (mm) of the face's vertices."""
+    out = []
+    explorer = TopExp_Explorer(face, TopAbs_VERTEX)
+    while explorer.More():
+        out.append(BRep_Tool.Pnt_s(TopoDS.Vertex(explorer.Current())).Z())
+        explorer.Next()
+    return out
 
 
 def _section_arcs(face: TopoDS_Face, tip: tuple[float, float, float], z: float) -> list[tuple[float, float]]:

@@ -38,18 +38,21 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
+from fusioncut.engines.brep.layers import (
+    Layer, RegionCutFailure, contact_patches, cut_stack, prism_layers, stack_box, stack_solid, stack_volume,
+)
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, read_binary_brep,
     shape_list, solids, split_into_cells, unify, volume, volume_change, without_slivers, write_binary_brep,
     write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
-from fusioncut.engines.brep.sweep import swept_volume
+from fusioncut.engines.brep.sweep import cylinder_region, cylinder_tool, swept_volume
 from fusioncut.engines.segments import horizontal_direction, segments_for, step_motion
 from fusioncut.errors import InputError
 from fusioncut.model.angles import immersion_from_machine
 from fusioncut.model.engagement import AngleInterval, CLStatus, EngagementMap, SliceEngagement
-from fusioncut.model.moves import Move, Toolpath
+from fusioncut.model.moves import ArcMove, Move, Toolpath
 from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool, SpindleDirection
 
@@ -62,19 +65,57 @@ class BooleanFailure(Exception):
 
 @dataclass
 class Cell:
-    """One column of the IPW: its material (None once all of it is cut away) and bounding box."""
+    """One column of the IPW: its material and bounding box (mm).
 
-    shape: TopoDS_Shape | None
+    The material is either a B-Rep ``solid`` or, while only cylindrical tools have cut it
+    horizontally or vertically, a stack of 2.5D ``layers`` (:mod:`fusioncut.engines.brep.layers`);
+    then the solid is built only when asked for (``shape``) and kept until the next cut.
+    """
+
+    solid: TopoDS_Shape | None
     box: tuple[tuple[float, float, float], tuple[float, float, float]] | None
     faces_at_merge: int = 0
     volume: float = 0.0
+    layers: tuple[Layer, ...] | None = None
+
+    @property
+    def empty(self) -> bool:
+        return self.solid is None and not self.layers
+
+    @property
+    def shape(self) -> TopoDS_Shape | None:
+        if self.solid is None and self.layers:
+            self.solid = stack_solid(self.layers)
+        return self.solid
 
     def set(self, shape: TopoDS_Shape | None, shape_volume: float | None = None) -> None:
+        """The material as a solid from now on."""
         if shape is not None and not solids(shape):
             shape = None
-        self.shape = shape
+        self.layers = None
+        self.solid = shape
         self.box = bounding_box(shape) if shape is not None else None
         self.volume = 0.0 if shape is None else volume(shape) if shape_volume is None else shape_volume
+
+    def set_layers(self, layers: tuple[Layer, ...]) -> None:
+        self.layers = layers or None
+        self.solid = None
+        self.box = stack_box(layers) if layers else None
+        self.volume = stack_volume(layers) if layers else 0.0
+
+    def to_layers(self) -> None:
+        """Take the layered form when the solid is a vertical prism (a box stock's cell)."""
+        if self.layers is None and self.solid is not None:
+            layers = prism_layers(self.solid)
+            if layers is not None:
+                solid = self.solid
+                self.set_layers(layers)
+                self.solid = solid  # the same material: keep the solid already built
+
+    def to_solid(self) -> None:
+        """Leave the layered form for good (a cut the layers cannot take is coming)."""
+        if self.layers is not None:
+            self.set(self.shape, self.volume)
 
 
 @dataclass
@@ -100,16 +141,23 @@ class BRepEngine:
             cell = Cell(None, None, count_faces(piece))
             cell.set(piece)
             self.cells.append(cell)
+        self.adopt_layers()
+
+    def adopt_layers(self) -> None:
+        """Cells that are vertical prisms take the layered form (when ``options.layers``)."""
+        if self.options.layers and self.options.sweep == "exact":
+            for cell in self.cells:
+                cell.to_layers()
 
     @property
     def ipw(self) -> TopoDS_Shape:
         """The whole in-process workpiece (a compound of the cells' solids when there are several)."""
-        shapes = [c.shape for c in self.cells if c.shape is not None]
+        shapes = [c.shape for c in self.cells if not c.empty]
         return shapes[0] if len(shapes) == 1 else compound(shapes)
 
     @property
     def ipw_volume(self) -> float:
-        return sum(volume(c.shape) for c in self.cells if c.shape is not None)
+        return sum(volume(c.shape) for c in self.cells if not c.empty)
 
     def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
         self.start(stock)
@@ -134,7 +182,7 @@ class BRepEngine:
         folder.mkdir(parents=True, exist_ok=True)
         name = f"ipw-{next_cl:07d}.bbrep"
         # one compound child per cell, an empty compound for a cell cut away, in cell order
-        write_binary_brep(compound(c.shape if c.shape is not None else compound([]) for c in self.cells),
+        write_binary_brep(compound(compound([]) if c.empty else c.shape for c in self.cells),
                           str(folder / (name + ".tmp")))
         os.replace(folder / (name + ".tmp"), folder / name)
         state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
@@ -159,6 +207,7 @@ class BRepEngine:
             cell = Cell(None, None, merged)
             cell.set(child)
             self.cells.append(cell)
+        self.adopt_layers()
         self.stock_volume = state["stock_volume"]
         self.removed_total = state["removed_total"]
         return int(state["next_cl"])
@@ -209,7 +258,7 @@ class BRepEngine:
         fp = footprint(motion, tool) if exact else None
         # before the sweep is built (a ball end mill's costs 5 ms): the cells within the tool's reach
         # of the path that may hold material the sweep could remove
-        candidates = [c for c in self.cells if c.shape is not None]
+        candidates = [c for c in self.cells if not c.empty]
         if fp is not None:
             reach = _reach_box(fp, motion, tool)
             candidates = [c for c in candidates if boxes_overlap(reach, c.box)]
@@ -221,6 +270,14 @@ class BRepEngine:
             if ceiling is not None:
                 ceiling.clear(fp)  # the exact sweep holds no material, so nothing is left in it either
             return CutOutcome(idle, timings=timings), []  # no sweep built: no method to report
+        if any(c.layers for c in candidates):
+            layered = self._layered_cut(candidates, motion, move, tool, timings, t1)
+            if layered is not None:
+                if ceiling is not None and fp is not None and layered[0].status != CLStatus.FAILED:
+                    ceiling.clear(fp)
+                return layered
+            for c in candidates:
+                c.to_solid()
         try:
             sweep = swept_volume(tool, motion, self.options.sweep, seam)
         except Exception as exc:  # noqa: BLE001 - kernel failures become a FAILED CL, never a crash
@@ -272,12 +329,7 @@ class BRepEngine:
                     found = [TopoDS.Face(s) for s in images] if images.Size() else [] if cut.IsDeleted(f) else [f]
                     candidates.extend(g for g in found if (kept is None or kept.Contains(g))
                                       and not _on_old_boundary(g, origins, own))
-            contacts = find_contact_faces(candidates, tool, move.end)
-            flute = [c for c in contacts if c.surface.zone == "flute"]
-            outcome.flute_area = sum(c.area for c in flute)
-            outcome.shank_area = sum(c.area for c in contacts if c.surface.zone == "shank")
-            if flute:
-                outcome.z_range = (min(c.z_range[0] for c in flute), max(c.z_range[1] for c in flute))
+            contacts = self._contact_summary(outcome, candidates, tool, move)
         except Exception as exc:  # noqa: BLE001
             outcome.status, outcome.reason = CLStatus.FAILED, f"contact analysis failed: {exc}"
         timings["contact"] = (time.perf_counter() - t2) * 1e3
@@ -286,6 +338,17 @@ class BRepEngine:
         return outcome, contacts
 
     # -- internals ----------------------------------------------------------------------------
+    @staticmethod
+    def _contact_summary(outcome: CutOutcome, candidates: list, tool: MillingTool, move: Move) -> list:
+        """The contact faces among ``candidates``, with their areas and heights in ``outcome``."""
+        contacts = find_contact_faces(candidates, tool, move.end)
+        flute = [c for c in contacts if c.surface.zone == "flute"]
+        outcome.flute_area = sum(c.area for c in flute)
+        outcome.shank_area = sum(c.area for c in contacts if c.surface.zone == "shank")
+        if flute:
+            outcome.z_range = (min(c.z_range[0] for c in flute), max(c.z_range[1] for c in flute))
+        return contacts
+
     def _material_ceiling(self) -> MaterialCeiling | None:
         """The height bounds of this engine's cells (None when switched off or no material is left)."""
         if self.options.ceiling_pixel is None or self.options.sweep != "exact":
@@ -365,8 +428,56 @@ class BRepEngine:
         op.PerformWithFiller(pf)
         return op
 
+    def _layered_cut(self, cells: list[Cell], motion: Move, move: Move, tool: MillingTool,
+                     timings: dict[str, float], t0: float) -> tuple[CutOutcome, list] | None:
+        """The CL on layered cells by 2D Booleans (see :mod:`fusioncut.engines.brep.layers`), or
+        None when the layers cannot take it: a tool that is not one cylinder, a move other than a
+        horizontal line, an XY arc of up to half a turn or a vertical move, a cell already in
+        solid form, or a tool too short to reach above a cell's top."""
+        cyl = cylinder_tool(tool)
+        if cyl is None or any(c.layers is None for c in cells):
+            return None
+        r, h = cyl
+        z_tip = min(motion.start[2], motion.end[2])
+        z_top = max(motion.start[2], motion.end[2]) + h
+        if any(c.layers[-1].z_hi > z_top for c in cells):
+            return None
+        flat = _at_height(motion, 0.0)
+        region = cylinder_region(r, flat) if flat is not None else None
+        if region is None:
+            return None
+        method = "step" if motion is not move else "exact"
+        t1 = time.perf_counter()
+        timings["sweep"] = (t1 - t0) * 1e3
+        fuzzies = (self.options.fuzzy or 0.0, *self.options.fuzzy_retries)
+        try:
+            results = [(c, *cut_stack(c.layers, region, z_tip, z_top, fuzzies)) for c in cells]
+        except RegionCutFailure as exc:
+            return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
+                              reason=f"layered Boolean failed after retries: {exc}"), []
+        t2 = time.perf_counter()
+        timings["boolean"] = (t2 - t1) * 1e3
+        idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR
+        results = [res for res in results if res[3]]
+        if not results:
+            return CutOutcome(idle, method=method, timings=timings), []
+        removed = sum(res[2] for res in results)
+        for cell, layers, *_ in results:
+            cell.set_layers(layers)
+        self.removed_total += removed
+        outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
+                             method=method, timings=timings)
+        contacts = []
+        try:
+            patches = [p for res in results for p in contact_patches(res[3], region, move.end[:2], r)]
+            contacts = self._contact_summary(outcome, patches, tool, move)
+        except Exception as exc:  # noqa: BLE001
+            outcome.status, outcome.reason = CLStatus.FAILED, f"contact analysis failed: {exc}"
+        timings["contact"] = (time.perf_counter() - t2) * 1e3
+        return outcome, contacts
+
     def _maybe_merge(self, cell: Cell) -> None:
-        if cell.shape is None:
+        if cell.empty or cell.layers is not None:
             return
         n = count_faces(cell.shape)
         if n > (1 + self.options.merge_growth) * cell.faces_at_merge:
@@ -389,6 +500,18 @@ def _reach_box(fp, motion: Move, tool: MillingTool) -> tuple[tuple[float, float,
     x0, y0, x1, y1 = fp.box(fp.reach + 1e-6)
     top = max(motion.start[2], motion.end[2]) + tool_radii(tool)[2]
     return (x0, y0, fp.z_low - 1e-6), (x1, y1, top + 1e-6)
+
+
+def _at_height(move: Move, z: float) -> Move | None:
+    """A horizontal or vertical ``move`` moved to height ``z`` (mm), its lower end there; None otherwise."""
+    lo = min(move.start[2], move.end[2])
+    if abs(move.start[2] - move.end[2]) > 1e-9 and math.dist(move.start[:2], move.end[:2]) > 1e-9:
+        return None
+    start = (move.start[0], move.start[1], move.start[2] - lo + z)
+    end = (move.end[0], move.end[1], move.end[2] - lo + z)
+    if isinstance(move, ArcMove):
+        return replace(move, start=start, end=end, center=(move.center[0], move.center[1], z))
+    return replace(move, start=start, end=end)
 
 
 def _on_old_boundary(face, origins, sweep_faces) -> bool:

@@ -202,20 +202,48 @@ def _add(p: Vec3, v: Vec3, k: float = 1.0) -> Vec3:
     return (p[0] + k * v[0], p[1] + k * v[1], p[2] + k * v[2])
 
 
+def cylinder_region(r: float, move: Move) -> TopoDS_Face | None:
+    """The planar region (at the lower end's height) a disk of radius ``r`` covers along a
+    horizontal line, an XY arc of at most half a turn or a vertical move; None for other moves and
+    for arcs whose caps would overlap. A cylinder's sweep is this region's prism; the layered
+    workpiece (:mod:`fusioncut.engines.brep.layers`) cuts with the region itself.
+    """
+    p0, p1 = move.start, move.end
+    if isinstance(move, ArcMove):
+        if move.plane != ArcPlane.XY or move.is_helix:
+            return None
+        pieces = _cylinder_arc_region(r, move)
+    elif abs(p1[2] - p0[2]) < _EPS and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) >= _EPS:
+        pieces = _cylinder_line_region(r, p0, p1)
+    elif math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _EPS:
+        return _disk((p1[0], p1[1], min(p0[2], p1[2])), Z, r)
+    else:
+        return None
+    return None if pieces is None else planar_face(wire_from_points(pieces))
+
+
 def _region_prism(pieces, height: float) -> TopoDS_Shape:
     return _prism(planar_face(wire_from_points(pieces)), (0.0, 0.0, height))
 
 
-def _cylinder_line(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape:
+def _cylinder_line_region(r: float, p0: Vec3, p1: Vec3) -> list:
     d = _unit((p1[0] - p0[0], p1[1] - p0[1], 0.0))
     n = (-d[1], d[0], 0.0)
     a, b, c, e = _add(p0, n, r), _add(p1, n, r), _add(p1, n, -r), _add(p0, n, -r)
-    return _region_prism([("line", (a, b)), ("arc", (b, _add(p1, d, r), c)),
-                          ("line", (c, e)), ("arc", (e, _add(p0, d, -r), a))], h)
+    return [("line", (a, b)), ("arc", (b, _add(p1, d, r), c)), ("line", (c, e)), ("arc", (e, _add(p0, d, -r), a))]
+
+
+def _cylinder_line(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape:
+    return _region_prism(_cylinder_line_region(r, p0, p1), h)
 
 
 def _cylinder_arc(r: float, h: float, move: ArcMove) -> TopoDS_Shape | None:
-    """Prism of the region a disk of radius ``r`` covers along an XY arc of at most half a turn."""
+    pieces = _cylinder_arc_region(r, move)
+    return None if pieces is None else _region_prism(pieces, h)
+
+
+def _cylinder_arc_region(r: float, move: ArcMove) -> list | None:
+    """The boundary of the region a disk of radius ``r`` covers along an XY arc of at most half a turn."""
     c, p0, p1 = move.center, move.start, move.end
     theta = move.sweep
     rho = math.hypot(p0[0] - c[0], p0[1] - c[1])
@@ -239,7 +267,7 @@ def _cylinder_arc(r: float, h: float, move: ArcMove) -> TopoDS_Shape | None:
         k = math.sqrt(r * r - (rho * math.sin(half)) ** 2) - rho * math.cos(half)
         q = (c[0] - k * um[0], c[1] - k * um[1], p0[2])
         pieces = [("arc", (o0, om, o1)), ("arc", (o1, _add(p1, t1, r), q)), ("arc", (q, _add(p0, t0, -r), o0))]
-    return _region_prism(pieces, h)
+    return pieces
 
 
 def _cylinder_ramp(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape | None:
