@@ -59,6 +59,11 @@ from fusioncut.model.tools import MillingTool, SpindleDirection
 log = logging.getLogger("fusioncut.engine")
 
 
+# a cut through a stack costs a 2D Boolean per layer it takes material from, so a cell with more
+# layers than this (a helical entry's floor steps) goes on as a solid
+MAX_LAYERS = int(os.environ.get("FC_MAX_LAYERS", 6))
+
+
 class BooleanFailure(Exception):
     pass
 
@@ -270,57 +275,74 @@ class BRepEngine:
             if ceiling is not None:
                 ceiling.clear(fp)  # the exact sweep holds no material, so nothing is left in it either
             return CutOutcome(idle, timings=timings), []  # no sweep built: no method to report
-        if any(c.layers for c in candidates):
-            layered = self._layered_cut(candidates, motion, move, tool, timings, t1)
-            if layered is not None:
-                if ceiling is not None and fp is not None and layered[0].status != CLStatus.FAILED:
-                    ceiling.clear(fp)
-                return layered
-            for c in candidates:
+        region = self._cutting_region(motion, tool) if any(c.layers for c in candidates) else None
+        flat, solid = [], []  # the cells cut as layers, and those cut as solids
+        for c in candidates:
+            if (c.layers is not None and region is not None and len(c.layers) <= MAX_LAYERS
+                    and c.layers[-1].z_hi <= region[3]):
+                flat.append(c)
+            else:
                 c.to_solid()
-        try:
-            sweep = swept_volume(tool, motion, self.options.sweep, seam)
-        except Exception as exc:  # noqa: BLE001 - kernel failures become a FAILED CL, never a crash
-            return CutOutcome(CLStatus.FAILED, reason=f"sweep construction failed: {exc}", timings=timings), []
-        if motion is not move and sweep.method == "exact":
-            sweep = replace(sweep, method="step")
-        if fp is not None and sweep.method == "sampled":
-            fp = replace(fp, r_clear=None)  # a sampled sweep's scallops prove nothing removed
+                solid.append(c)
+        method = "step" if motion is not move else "exact"
+        touched: list[Cell] = []
+        sweep = None
+        if solid:
+            try:
+                sweep = swept_volume(tool, motion, self.options.sweep, seam)
+            except Exception as exc:  # noqa: BLE001 - kernel failures become a FAILED CL, never a crash
+                return CutOutcome(CLStatus.FAILED, reason=f"sweep construction failed: {exc}", timings=timings), []
+            if motion is not move and sweep.method == "exact":
+                sweep = replace(sweep, method="step")
+            method = sweep.method
+            if fp is not None and sweep.method == "sampled":
+                fp = replace(fp, r_clear=None)  # a sampled sweep's scallops prove nothing removed
+            sweep_box = bounding_box(sweep.shape)
+            touched = [c for c in solid if boxes_overlap(sweep_box, c.box)]
         t2 = time.perf_counter()
         timings["sweep"] = (t2 - t1) * 1e3
-        sweep_box = bounding_box(sweep.shape)
-        touched = [c for c in candidates if boxes_overlap(sweep_box, c.box)]
-        if not touched:
+        if not touched and not flat:
             if fp is not None and ceiling is not None:
                 ceiling.clear(fp)
-            return CutOutcome(idle, method=sweep.method, timings=timings), []
+            return CutOutcome(idle, method=method, timings=timings), []
         t1 = t2
+        # all cells are cut before any is changed: a failure leaves the IPW as it was
         try:
-            # all cells are cut before any is changed: a failure leaves the IPW as it was
             results = [(c, *self._subtract(c.shape, sweep.shape, c.volume)) for c in touched]
         except BooleanFailure as exc:
             saved = self._save_failure(index, sweep.shape)
             log.error("CL %d (%s): Boolean failed: %s; shapes saved to %s", index, move.source, exc, saved)
-            return CutOutcome(CLStatus.FAILED, method=sweep.method, timings=timings,
+            return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
                               reason=f"Boolean failed after retries: {exc}; shapes saved to {saved}"), []
+        try:
+            fuzzies = (self.options.fuzzy or 0.0, *self.options.fuzzy_retries)
+            layered = [(c, *cut_stack(c.layers, region[0], region[2], region[3], fuzzies)) for c in flat]
+        except RegionCutFailure as exc:
+            log.error("CL %d (%s): layered Boolean failed: %s", index, move.source, exc)
+            return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
+                              reason=f"Boolean of the layers failed after retries: {exc}"), []
         t2 = time.perf_counter()
         timings["boolean"] = (t2 - t1) * 1e3
         if fp is not None and ceiling is not None:  # the cells are cut (below) or lose nothing: the sweep is gone
             ceiling.clear(fp)
         results = [r for r in results if r[2] is not None]
-        if not results:  # nothing removed: the tool only touches or misses the material
-            return CutOutcome(idle, method=sweep.method, timings=timings), []
-        removed = sum(r[1] for r in results)
+        layered = [r for r in layered if r[3]]
+        if not results and not layered:  # nothing removed: the tool only touches or misses the material
+            return CutOutcome(idle, method=method, timings=timings), []
+        removed = sum(r[1] for r in results) + sum(r[2] for r in layered)
         for cell, cut_volume, new_shape, _ in results:
             cell.set(new_shape, cell.volume - cut_volume)
+        for cell, layers, *_ in layered:
+            cell.set_layers(layers)
         self.removed_total += removed
         outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
-                             method=sweep.method, timings=timings)
+                             method=method, timings=timings)
         contacts = []
         try:
-            candidates = []
-            sweep_faces = list(faces(sweep.shape))
-            own = face_map(sweep.shape)
+            candidates = [p for _, _, _, cuts in layered for p in contact_patches(cuts, region[0], move.end[:2], region[1])]
+            if results:
+                sweep_faces = list(faces(sweep.shape))
+                own = face_map(sweep.shape)
             for _, _, new_shape, cut in results:
                 kept = None if new_shape.IsSame(cut.Shape()) else face_map(new_shape)  # slivers dropped
                 origins = cut.Origins()
@@ -329,7 +351,12 @@ class BRepEngine:
                     found = [TopoDS.Face(s) for s in images] if images.Size() else [] if cut.IsDeleted(f) else [f]
                     candidates.extend(g for g in found if (kept is None or kept.Contains(g))
                                       and not _on_old_boundary(g, origins, own))
-            contacts = self._contact_summary(outcome, candidates, tool, move)
+            contacts = find_contact_faces(candidates, tool, move.end)
+            flute = [c for c in contacts if c.surface.zone == "flute"]
+            outcome.flute_area = sum(c.area for c in flute)
+            outcome.shank_area = sum(c.area for c in contacts if c.surface.zone == "shank")
+            if flute:
+                outcome.z_range = (min(c.z_range[0] for c in flute), max(c.z_range[1] for c in flute))
         except Exception as exc:  # noqa: BLE001
             outcome.status, outcome.reason = CLStatus.FAILED, f"contact analysis failed: {exc}"
         timings["contact"] = (time.perf_counter() - t2) * 1e3
@@ -338,17 +365,6 @@ class BRepEngine:
         return outcome, contacts
 
     # -- internals ----------------------------------------------------------------------------
-    @staticmethod
-    def _contact_summary(outcome: CutOutcome, candidates: list, tool: MillingTool, move: Move) -> list:
-        """The contact faces among ``candidates``, with their areas and heights in ``outcome``."""
-        contacts = find_contact_faces(candidates, tool, move.end)
-        flute = [c for c in contacts if c.surface.zone == "flute"]
-        outcome.flute_area = sum(c.area for c in flute)
-        outcome.shank_area = sum(c.area for c in contacts if c.surface.zone == "shank")
-        if flute:
-            outcome.z_range = (min(c.z_range[0] for c in flute), max(c.z_range[1] for c in flute))
-        return contacts
-
     def _material_ceiling(self) -> MaterialCeiling | None:
         """The height bounds of this engine's cells (None when switched off or no material is left)."""
         if self.options.ceiling_pixel is None or self.options.sweep != "exact":
@@ -428,53 +444,18 @@ class BRepEngine:
         op.PerformWithFiller(pf)
         return op
 
-    def _layered_cut(self, cells: list[Cell], motion: Move, move: Move, tool: MillingTool,
-                     timings: dict[str, float], t0: float) -> tuple[CutOutcome, list] | None:
-        """The CL on layered cells by 2D Booleans (see :mod:`fusioncut.engines.brep.layers`), or
-        None when the layers cannot take it: a tool that is not one cylinder, a move other than a
-        horizontal line, an XY arc of up to half a turn or a vertical move, a cell already in
-        solid form, or a tool too short to reach above a cell's top."""
+    @staticmethod
+    def _cutting_region(motion: Move, tool: MillingTool):
+        """(planar region at z = 0, tool radius, tip height, top height) in mm when layers can take
+        this cut: a tool that is one cylinder, on a horizontal line, an XY arc of up to half a turn
+        or a vertical move; None otherwise."""
         cyl = cylinder_tool(tool)
-        if cyl is None or any(c.layers is None for c in cells):
-            return None
-        r, h = cyl
-        z_tip = min(motion.start[2], motion.end[2])
-        z_top = max(motion.start[2], motion.end[2]) + h
-        if any(c.layers[-1].z_hi > z_top for c in cells):
-            return None
-        flat = _at_height(motion, 0.0)
-        region = cylinder_region(r, flat) if flat is not None else None
+        flat = _at_height(motion, 0.0) if cyl is not None else None
+        region = cylinder_region(cyl[0], flat) if flat is not None else None
         if region is None:
             return None
-        method = "step" if motion is not move else "exact"
-        t1 = time.perf_counter()
-        timings["sweep"] = (t1 - t0) * 1e3
-        fuzzies = (self.options.fuzzy or 0.0, *self.options.fuzzy_retries)
-        try:
-            results = [(c, *cut_stack(c.layers, region, z_tip, z_top, fuzzies)) for c in cells]
-        except RegionCutFailure as exc:
-            return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
-                              reason=f"layered Boolean failed after retries: {exc}"), []
-        t2 = time.perf_counter()
-        timings["boolean"] = (t2 - t1) * 1e3
-        idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR
-        results = [res for res in results if res[3]]
-        if not results:
-            return CutOutcome(idle, method=method, timings=timings), []
-        removed = sum(res[2] for res in results)
-        for cell, layers, *_ in results:
-            cell.set_layers(layers)
-        self.removed_total += removed
-        outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
-                             method=method, timings=timings)
-        contacts = []
-        try:
-            patches = [p for res in results for p in contact_patches(res[3], region, move.end[:2], r)]
-            contacts = self._contact_summary(outcome, patches, tool, move)
-        except Exception as exc:  # noqa: BLE001
-            outcome.status, outcome.reason = CLStatus.FAILED, f"contact analysis failed: {exc}"
-        timings["contact"] = (time.perf_counter() - t2) * 1e3
-        return outcome, contacts
+        z_tip = min(motion.start[2], motion.end[2])
+        return region, cyl[0], z_tip, max(motion.start[2], motion.end[2]) + cyl[1]
 
     def _maybe_merge(self, cell: Cell) -> None:
         if cell.empty or cell.layers is not None:
