@@ -39,7 +39,7 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import (
-    Layer, RegionCutFailure, contact_patches, cut_stack, prism_layers, stack_box, stack_solid, stack_volume,
+    Layer, RegionCutFailure, contact_patches, cut_stack, solid_layers, stack_box, stack_solid, stack_volume,
 )
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, read_binary_brep,
@@ -111,7 +111,7 @@ class Cell:
     def to_layers(self) -> None:
         """Take the layered form when the solid is a vertical prism (a box stock's cell)."""
         if self.layers is None and self.solid is not None:
-            layers = prism_layers(self.solid)
+            layers = solid_layers(self.solid, MAX_LAYERS)
             if layers is not None:
                 solid = self.solid
                 self.set_layers(layers)
@@ -467,6 +467,8 @@ class BRepEngine:
             except Exception as exc:  # noqa: BLE001 - merging is an optimisation: keep the cell as it is
                 log.debug("face merge skipped: %s", exc)
             cell.faces_at_merge = count_faces(cell.shape) if cell.shape is not None else 0
+            if self.options.layers and self.options.sweep == "exact":
+                cell.to_layers()  # back to layers once a helical entry's floor steps are gone
 
     def _save_failure(self, index: int, sweep: TopoDS_Shape) -> str:
         folder = self.options.failure_dir or Path("fusioncut-failures")

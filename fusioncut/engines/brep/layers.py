@@ -25,11 +25,13 @@ from dataclasses import dataclass
 
 from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_Operation, BOPAlgo_PaveFiller
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Surface
-from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_Transform
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy, BRepBuilderAPI_MakeFace, BRepBuilderAPI_Transform
+from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepPrimAPI import BRepPrimAPI_MakePrism
 from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Cylinder, GeomAbs_Plane
+from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.gp import gp_Ax3, gp_Cylinder, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
-from OCP.TopAbs import TopAbs_EDGE
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_REVERSED
 from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
@@ -71,40 +73,63 @@ def _moved(shape: TopoDS_Shape, dz: float) -> TopoDS_Shape:
     return BRepBuilderAPI_Transform(shape, t, True).Shape()
 
 
-def prism_layers(solid: TopoDS_Shape) -> tuple[Layer, ...] | None:
-    """``solid`` as one layer when it is a vertical prism (a box or vertical cylinder stock's cell),
-    else None: every face is either horizontal at its bottom or top, or vertical; and the bottom's
-    area times the height gives the solid's volume (1e-9 relative)."""
+def solid_layers(solid: TopoDS_Shape, max_layers: int) -> tuple[Layer, ...] | None:
+    """``solid`` as a stack of at most ``max_layers`` layers when it is 2.5D and nested, else None.
+
+    That is: every face is vertical (a plane or a cylinder about a vertical axis) or horizontal,
+    and the only face looking down is the bottom; so every point of the footprint has one top, the
+    up-looking faces tile the footprint, and the layer below height z holds the up faces at z and
+    above. A box stock's cell is one layer; a cell cut by flat end mills only, taken back from the
+    solid form (after a helical entry's floor steps were cut away), a few. The layers' volume must
+    be the solid's (1e-9 relative).
+    """
     from fusioncut.engines.brep.occ import volume
 
-    (x0, y0, z0), (x1, y1, z1) = bounding_box(solid, exact=True)
-    bottom = []
+    (_, _, z0), (_, _, z1) = bounding_box(solid, exact=True)
+    up: dict[float, list[TopoDS_Face]] = {}
     for f in faces(solid):
         s = BRepAdaptor_Surface(f)
         t = s.GetType()
-        if t == GeomAbs_Plane:
-            n = s.Plane().Axis().Direction()
-            if abs(n.Z()) < 1e-12:
-                continue  # a vertical wall
-            if abs(abs(n.Z()) - 1.0) > 1e-12:
-                return None
-            z = s.Plane().Location().Z()
-            if abs(z - z0) < 1e-9:
-                bottom.append(f)
-            elif abs(z - z1) > 1e-9:
-                return None
-        elif t == GeomAbs_Cylinder:
+        if t == GeomAbs_Cylinder:
             if abs(abs(s.Cylinder().Axis().Direction().Z()) - 1.0) > 1e-12:
                 return None
-        else:
+            continue
+        if t != GeomAbs_Plane:
             return None
-    if not bottom or z1 - z0 < Z_SNAP:
+        nz = s.Plane().Axis().Direction().Z() * (-1.0 if f.Orientation() == TopAbs_REVERSED else 1.0)
+        if abs(nz) < 1e-12:
+            continue  # a vertical wall
+        z = s.Plane().Location().Z()
+        if abs(abs(nz) - 1.0) > 1e-12 or (nz < 0 and abs(z - z0) > 1e-9):
+            return None  # slanted, or an overhang: not 2.5D from above
+        if nz > 0:
+            key = next((k for k in up if abs(k - z) < 1e-9), z)
+            up.setdefault(key, []).append(f)
+            if len(up) > max_layers:
+                return None
+    heights = sorted(up)
+    if not heights or heights[0] - z0 < Z_SNAP:
         return None
-    region = _moved(compound(bottom), -z0)
-    layer = make_layer(z0, z1, region)
-    if abs(layer.volume - volume(solid)) > 1e-9 * layer.volume:
+    layers = []
+    for j, z_hi in enumerate(heights):
+        tops = [_moved(f, -z) for z in heights[j:] for f in up[z]]
+        region = tops[0] if len(tops) == 1 else _union(tops)
+        layers.append(make_layer(heights[j - 1] if j else z0, z_hi, region))
+    layers = _joined(layers)
+    if abs(stack_volume(layers) - volume(solid)) > 1e-9 * stack_volume(layers):
         return None
-    return (layer,)
+    return layers
+
+
+def _union(regions: list[TopoDS_Shape]) -> TopoDS_Shape:
+    """One region from planar faces that tile it (z = 0): fused, and same-plane faces merged when
+    the merge keeps the area (1e-9 relative)."""
+    fused = fuse_all(regions)
+    u = ShapeUpgrade_UnifySameDomain(BRepBuilderAPI_Copy(fused).Shape(), True, True, False)
+    u.Build()
+    merged = u.Shape()
+    a = area(fused)
+    return merged if abs(area(merged) - a) <= 1e-9 * a and BRepCheck_Analyzer(merged).IsValid() else fused
 
 
 def stack_box(layers: tuple[Layer, ...]) -> Box:
