@@ -17,6 +17,14 @@ joined again when the slices are merged. Faces of a cell on the same surface are
 its face count grew by ``merge_growth`` since its last merge (without merging the IPW fragments and
 every Boolean slows down).
 
+A cell that only cylindrical tools have cut horizontally or vertically is kept as a stack of 2.5D
+layers (``EngineOptions.layers``, :mod:`fusioncut.engines.brep.layers`): the CL's sweep is then a
+planar region taken away from the layers above the tip by 2D Booleans, and the contact faces are
+the engaged arcs of each layer extruded over its height, sliced like any other. A cut the layers
+cannot take (another tool, a ramp's oblique sweep, too many layers) turns the cell into a solid; a
+solid cell whose faces are all horizontal or vertical again takes the layers back at its next merge.
+Both forms give the same material and the same engagement (tested against an all-solid run).
+
 A failed Boolean is retried with fuzzy values; if it still fails the CL is reported FAILED with the
 reason, both shapes are written as .brep for reproduction, the IPW stays as it was and the run goes
 on. Removed volume is checked against the IPW's volume change on every CL.
@@ -110,7 +118,8 @@ class Cell:
         self.volume = stack_volume(layers) if layers else 0.0
 
     def to_layers(self) -> None:
-        """Take the layered form when the solid is a vertical prism (a box stock's cell)."""
+        """Take the layered form when the solid is 2.5D (a box stock's cell, or one only flat end
+        mills have cut) in at most ``MAX_LAYERS`` layers."""
         if self.layers is None and self.solid is not None:
             layers = solid_layers(self.solid, MAX_LAYERS)
             if layers is not None:
@@ -150,7 +159,7 @@ class BRepEngine:
         self.adopt_layers()
 
     def adopt_layers(self) -> None:
-        """Cells that are vertical prisms take the layered form (when ``options.layers``)."""
+        """Cells that are 2.5D take the layered form (when ``options.layers``)."""
         if self.options.layers and self.options.sweep == "exact":
             for cell in self.cells:
                 cell.to_layers()
