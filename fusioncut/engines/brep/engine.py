@@ -40,7 +40,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_Operation, BOPAlgo_PaveFiller
+from OCP.BOPAlgo import BOPAlgo_Operation
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
@@ -50,8 +50,8 @@ from fusioncut.engines.brep.layers import (
     Layer, RegionCutFailure, contact_patches, cut_stack, solid_layers, stack_box, stack_solid, stack_volume,
 )
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, read_binary_brep,
-    shape_list, solids, split_into_cells, unify, volume, volume_change, without_slivers, write_binary_brep,
+    boolean, bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections,
+    read_binary_brep, solids, split_into_cells, unify, volume, volume_change, without_slivers, write_binary_brep,
     write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
@@ -400,16 +400,12 @@ class BRepEngine:
         sweep_volume = None  # only needed once something is removed
         first = self.options.fuzzy if self.options.fuzzy is not None else (1e-6 if self.options.cell_size else 0.0)
         for fuzzy in (first, *self.options.fuzzy_retries):
-            pf = BOPAlgo_PaveFiller()
-            pf.SetArguments(shape_list([ipw, sweep]))
-            pf.SetRunParallel(self.options.kernel_threads)
-            if fuzzy:
-                pf.SetFuzzyValue(fuzzy)
-            pf.Perform()
-            if pf.HasErrors():
+            threads = self.options.kernel_threads
+            pf = intersections(ipw, sweep, fuzzy, threads)
+            if pf is None:
                 last = f"intersection reported errors (fuzzy={fuzzy})"
                 continue
-            common = self._boolean(ipw, sweep, pf, BOPAlgo_Operation.BOPAlgo_COMMON, history=False)
+            common = boolean(ipw, sweep, pf, BOPAlgo_Operation.BOPAlgo_COMMON, history=False, parallel=threads)
             if common.HasErrors():
                 last = f"common failed (fuzzy={fuzzy})"
                 continue
@@ -421,7 +417,7 @@ class BRepEngine:
                 # more material than the tool swept: the intersection went wrong, not the physics
                 last = f"removed {removed:.6g} mm³ > swept {sweep_volume:.6g} mm³ (fuzzy={fuzzy})"
                 continue
-            cut = self._boolean(ipw, sweep, pf, BOPAlgo_Operation.BOPAlgo_CUT)
+            cut = boolean(ipw, sweep, pf, BOPAlgo_Operation.BOPAlgo_CUT, parallel=threads)
             if cut.HasErrors():
                 last = f"cut failed (fuzzy={fuzzy})"
                 continue
@@ -433,26 +429,6 @@ class BRepEngine:
                 continue
             return removed, without_slivers(ipw, cut.Shape()), cut
         raise BooleanFailure(last)
-
-    def _boolean(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, pf: BOPAlgo_PaveFiller, operation,
-                 history: bool = True) -> BOPAlgo_BOP:
-        """``ipw`` (operation) ``sweep`` on the intersections ``pf`` already computed, with its history
-        when asked (the Cut's gives the contact faces; the Common's is never read, and skipping it took
-        the Boolean time of the quick benchmark's CLs 997-1800 from 21.5-23.1 s to 20.5 s).
-
-        Without the kernel's check for inverted solids (neither argument can be one: the IPW comes from
-        the stock by Cuts and the sweep is built outward): on the quick benchmark's first 700 adaptive
-        CLs the median went from 70–77 ms to 68 ms (59–65 ms with ``kernel_threads``), same results.
-        """
-        op = BOPAlgo_BOP()
-        op.AddArgument(ipw)
-        op.AddTool(sweep)
-        op.SetOperation(operation)
-        op.SetCheckInverted(False)
-        op.SetToFillHistory(history)
-        op.SetRunParallel(self.options.kernel_threads)
-        op.PerformWithFiller(pf)
-        return op
 
     @staticmethod
     def _cutting_region(motion: Move, tool: MillingTool):

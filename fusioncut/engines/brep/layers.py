@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_Operation, BOPAlgo_PaveFiller
+from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_Operation
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Surface
 from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy, BRepBuilderAPI_MakeFace, BRepBuilderAPI_Transform
 from OCP.BRepCheck import BRepCheck_Analyzer
@@ -37,7 +37,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 
 from fusioncut.engines.brep.occ import (
-    area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, shape_list, unify,
+    area, boolean, bounding_box, boxes_overlap, edges, faces, fuse_all, intersections, unify,
 )
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -222,22 +222,18 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
     """
     last = "unknown"
     for fuzzy in fuzzy_values:
-        pf = BOPAlgo_PaveFiller()
-        pf.SetArguments(shape_list([old, tool]))
-        if fuzzy:
-            pf.SetFuzzyValue(fuzzy)
-        pf.Perform()
-        if pf.HasErrors():
+        pf = intersections(old, tool, fuzzy)
+        if pf is None:
             last = f"2D intersection reported errors (fuzzy={fuzzy})"
             continue
-        common = _bop(old, tool, pf, BOPAlgo_Operation.BOPAlgo_COMMON, False)
+        common = boolean(old, tool, pf, BOPAlgo_Operation.BOPAlgo_COMMON, history=False)
         if common.HasErrors():
             last = f"2D common failed (fuzzy={fuzzy})"
             continue
         lost = area(common.Shape())
         if lost <= 1e-12 * max(1.0, old_area):
             return 0.0, None, None
-        cut = _bop(old, tool, pf, BOPAlgo_Operation.BOPAlgo_CUT, True)
+        cut = boolean(old, tool, pf, BOPAlgo_Operation.BOPAlgo_CUT)
         if cut.HasErrors():
             last = f"2D cut failed (fuzzy={fuzzy})"
             continue
@@ -248,16 +244,6 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
             continue
         return lost, new, cut
     raise RegionCutFailure(last)
-
-
-def _bop(a: TopoDS_Shape, b: TopoDS_Shape, pf: BOPAlgo_PaveFiller, operation, history: bool) -> BOPAlgo_BOP:
-    op = BOPAlgo_BOP()
-    op.AddArgument(a)
-    op.AddTool(b)
-    op.SetOperation(operation)
-    op.SetToFillHistory(history)
-    op.PerformWithFiller(pf)
-    return op
 
 
 def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[float, float], radius: float,

@@ -5,6 +5,7 @@ import logging
 import math
 from collections.abc import Iterable, Iterator
 
+from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_PaveFiller
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
@@ -173,6 +174,38 @@ def shape_list(shapes: Iterable[TopoDS_Shape]) -> List_TopoDS_Shape:
     for s in shapes:
         lst.Append(s)
     return lst
+
+
+def intersections(a: TopoDS_Shape, b: TopoDS_Shape, fuzzy: float, parallel: bool = False):
+    """The intersections of ``a`` and ``b`` (a ``BOPAlgo_PaveFiller``) that a Common and a Cut of
+    the two can share, or None when the kernel reports errors."""
+    pf = BOPAlgo_PaveFiller()
+    pf.SetArguments(shape_list([a, b]))
+    pf.SetRunParallel(parallel)
+    if fuzzy:
+        pf.SetFuzzyValue(fuzzy)
+    pf.Perform()
+    return None if pf.HasErrors() else pf
+
+
+def boolean(a: TopoDS_Shape, b: TopoDS_Shape, pf, operation, history: bool = True, parallel: bool = False):
+    """``a`` (operation) ``b`` on the intersections ``pf`` already computed, with its history when
+    asked (a Cut's gives the contact faces; a Common's is never read, and skipping it took the
+    Boolean time of the quick benchmark's CLs 997-1800 from 21.5-23.1 s to 20.5 s).
+
+    Without the kernel's check for inverted solids (no argument here can be one: workpieces come
+    from the stock by Cuts and sweeps are built outward): on the quick benchmark's first 700
+    adaptive CLs the median went from 70–77 ms to 68 ms (59–65 ms with kernel threads), same results.
+    """
+    op = BOPAlgo_BOP()
+    op.AddArgument(a)
+    op.AddTool(b)
+    op.SetOperation(operation)
+    op.SetCheckInverted(False)
+    op.SetToFillHistory(history)
+    op.SetRunParallel(parallel)
+    op.PerformWithFiller(pf)
+    return op
 
 
 def fuse_all(shapes: list[TopoDS_Shape], glue: bool = False, fuzzy: float = 0.0) -> TopoDS_Shape:
