@@ -47,7 +47,8 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import (
-    Layer, RegionCutFailure, contact_patches, cut_stack, solid_layers, stack_box, stack_solid, stack_volume,
+    Layer, RegionCutFailure, contact_patches, cut_stack, make_layer, solid_layers, stack_box, stack_solid,
+    stack_volume,
 )
 from fusioncut.engines.brep.occ import (
     boolean, bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections,
@@ -128,7 +129,7 @@ class Cell:
                 self.solid = solid  # the same material: keep the solid already built
 
     def to_solid(self) -> None:
-        """Leave the layered form for good (a cut the layers cannot take is coming)."""
+        """Leave the layered form (a cut the layers cannot take is coming)."""
         if self.layers is not None:
             self.set(self.shape, self.volume)
 
@@ -196,12 +197,16 @@ class BRepEngine:
         """
         folder.mkdir(parents=True, exist_ok=True)
         name = f"ipw-{next_cl:07d}.bbrep"
-        # one compound child per cell, an empty compound for a cell cut away, in cell order
-        write_binary_brep(compound(compound([]) if c.empty else c.shape for c in self.cells),
+        # one compound child per cell, in cell order: an empty compound for a cell cut away, the
+        # solid, or a layered cell's regions (their heights go in the state): kept as layers, not
+        # as their solid, so that the resumed run cuts the very same regions
+        write_binary_brep(compound(compound([]) if c.empty else compound(la.region for la in c.layers) if c.layers
+                                   else c.shape for c in self.cells),
                           str(folder / (name + ".tmp")))
         os.replace(folder / (name + ".tmp"), folder / name)
         state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
-                 "removed_total": self.removed_total, "faces_at_merge": [c.faces_at_merge for c in self.cells]}
+                 "removed_total": self.removed_total, "faces_at_merge": [c.faces_at_merge for c in self.cells],
+                 "layers": [[(la.z_lo, la.z_hi) for la in c.layers] if c.layers else None for c in self.cells]}
         (folder / "state.json.tmp").write_text(json.dumps(state))
         os.replace(folder / "state.json.tmp", folder / "state.json")
         for old in folder.glob("ipw-*.bbrep"):
@@ -218,11 +223,14 @@ class BRepEngine:
         if ipw.IsNull():
             return None
         self.cells = []
-        for child, merged in zip(children(ipw), state["faces_at_merge"]):
+        heights = state.get("layers") or [None] * len(state["faces_at_merge"])
+        for child, merged, zs in zip(children(ipw), state["faces_at_merge"], heights):
             cell = Cell(None, None, merged)
-            cell.set(child)
+            if zs:
+                cell.set_layers(tuple(make_layer(z0, z1, region) for region, (z0, z1) in zip(children(child), zs)))
+            else:
+                cell.set(child)
             self.cells.append(cell)
-        self.adopt_layers()
         self.stock_volume = state["stock_volume"]
         self.removed_total = state["removed_total"]
         return int(state["next_cl"])
@@ -292,7 +300,6 @@ class BRepEngine:
                     and c.layers[-1].z_hi <= region[3]):
                 flat.append(c)
             else:
-                c.to_solid()
                 solid.append(c)
         method = "step" if motion is not move else "exact"
         touched: list[Cell] = []
@@ -309,6 +316,8 @@ class BRepEngine:
                 fp = replace(fp, r_clear=None)  # a sampled sweep's scallops prove nothing removed
             sweep_box = bounding_box(sweep.shape)
             touched = [c for c in solid if boxes_overlap(sweep_box, c.box)]
+            for c in touched:
+                c.to_solid()
         t2 = time.perf_counter()
         timings["sweep"] = (t2 - t1) * 1e3
         if not touched and not flat:

@@ -133,8 +133,12 @@ def _union(regions: list[TopoDS_Shape]) -> TopoDS_Shape:
 
 
 def stack_box(layers: tuple[Layer, ...]) -> Box:
-    return ((min(la.box[0][0] for la in layers), min(la.box[0][1] for la in layers), layers[0].z_lo),
-            (max(la.box[1][0] for la in layers), max(la.box[1][1] for la in layers), layers[-1].z_hi))
+    """The stack's box, widened by the edges' tolerance in z as in x and y (the regions' boxes at
+    z = 0 span ± that much), like the box of the same material as a solid: the material's height
+    bounds start from the cells' box tops, and a run resumed from a checkpoint, whose cells may be
+    in the other form, must start them at the same height."""
+    return ((min(la.box[0][0] for la in layers), min(la.box[0][1] for la in layers), layers[0].z_lo + layers[0].box[0][2]),
+            (max(la.box[1][0] for la in layers), max(la.box[1][1] for la in layers), layers[-1].z_hi + layers[-1].box[1][2]))
 
 
 def stack_volume(layers: tuple[Layer, ...]) -> float:

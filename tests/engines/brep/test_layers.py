@@ -91,8 +91,9 @@ def _same(a, b):
     for sa, sb in zip(a.slices, b.slices):
         assert len(sa.intervals) == len(sb.intervals), (a.cl_index, sa.intervals, sb.intervals)
         for ia, ib in zip(sa.intervals, sb.intervals):
-            assert ia.entry == pytest.approx(ib.entry, abs=1e-3)
-            assert ia.exit == pytest.approx(ib.exit, abs=1e-3)
+            # on the circle: a sliver of a wall at 0° may come as [359.99994, 360] or [0, 0.00006]
+            assert abs(math.remainder(ia.entry - ib.entry, 360.0)) <= 1e-3, (a.cl_index, ia, ib)
+            assert abs(math.remainder(ia.exit - ib.exit, 360.0)) <= 1e-3, (a.cl_index, ia, ib)
 
 
 point = st.tuples(st.floats(-5, 45), st.floats(-5, 35), st.sampled_from([-1.0, -2.5, -4.0]))
