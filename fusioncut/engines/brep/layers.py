@@ -37,7 +37,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 
 from fusioncut.engines.brep.occ import (
-    area, boolean, bounding_box, boxes_overlap, edges, faces, fuse_all, intersections, unify,
+    area, boolean, bounding_box, boxes_overlap, edges, faces, fuse_all, intersections, unify, volume,
 )
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -63,8 +63,8 @@ class Layer:
         return self.area * (self.z_hi - self.z_lo)
 
 
-def make_layer(z_lo: float, z_hi: float, region: TopoDS_Shape, region_area: float | None = None) -> Layer:
-    return Layer(z_lo, z_hi, region, area(region) if region_area is None else region_area, bounding_box(region))
+def make_layer(z_lo: float, z_hi: float, region: TopoDS_Shape) -> Layer:
+    return Layer(z_lo, z_hi, region, area(region), bounding_box(region))
 
 
 def _moved(shape: TopoDS_Shape, dz: float) -> TopoDS_Shape:
@@ -83,9 +83,7 @@ def solid_layers(solid: TopoDS_Shape, max_layers: int) -> tuple[Layer, ...] | No
     solid form (after a helical entry's floor steps were cut away), a few. The layers' volume must
     be the solid's (1e-9 relative).
     """
-    from fusioncut.engines.brep.occ import volume
-
-    (_, _, z0), (_, _, z1) = bounding_box(solid, exact=True)
+    z0 = bounding_box(solid, exact=True)[0][2]
     up: dict[float, list[TopoDS_Face]] = {}
     for f in faces(solid):
         s = BRepAdaptor_Surface(f)
