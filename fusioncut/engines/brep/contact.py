@@ -188,6 +188,7 @@ class ContactFace:
     surface: ToolSurface
     area: float
     z_range: tuple[float, float]  # above the tip, mm
+    corners_z: tuple[float, ...] = ()  # machine z of the face's vertices, mm
 
 
 def find_contact_faces(candidates, tool: MillingTool, tip: tuple[float, float, float],
@@ -208,7 +209,7 @@ def find_contact_faces(candidates, tool: MillingTool, tip: tuple[float, float, f
             # one face of a cylindrical sweep runs over flute and shank: split its area by zone
             out.extend(_split_by_zone(face, ts, tsurfs, tip, lo, hi, tol))
             continue
-        out.append(ContactFace(face, ts, area(face), (max(lo, ts.z0), min(hi, ts.z1))))
+        out.append(ContactFace(face, ts, area(face), (max(lo, ts.z0), min(hi, ts.z1)), _corner_heights(face)))
     return out
 
 
@@ -230,7 +231,7 @@ def _split_by_zone(face, ts: ToolSurface, tsurfs: list[ToolSurface], tip, lo: fl
                                    gp_Pnt(tip[0] + big, tip[1] + big, tip[2] + z1)).Shape()
         pieces = faces(BRepAlgoAPI_Common(face, slab).Shape())
         for piece in pieces:
-            out.append(ContactFace(piece, other, area(piece), (z0, z1)))
+            out.append(ContactFace(piece, other, area(piece), (z0, z1), _corner_heights(piece)))
     return out
 
 
@@ -242,7 +243,7 @@ def slice_intervals(contacts: list[ContactFace], tip: tuple[float, float, float]
     the engagement jumps, and which side a slice exactly on the step reads would otherwise depend on
     the last bit of its height, and on whether the kernel kept the faces above and below as one.
     """
-    if any(abs(zv - tip[2] - z) < 1e-9 for cf in contacts for zv in _corner_heights(cf.face)):
+    if any(abs(zv - tip[2] - z) < 1e-9 for cf in contacts for zv in cf.corners_z):
         z -= 1e-7
     arcs: list[tuple[float, float]] = []
     for cf in contacts:
@@ -286,14 +287,14 @@ def slice_intervals(contacts: list[ContactFace], tip: tuple[float, float, float]
     return merge_arcs(arcs)
 
 
-def _corner_heights(face: TopoDS_Face) -> list[float]:
+def _corner_heights(face: TopoDS_Face) -> tuple[float, ...]:
     """Machine z (mm) of the face's vertices."""
     out = []
     explorer = TopExp_Explorer(face, TopAbs_VERTEX)
     while explorer.More():
         out.append(BRep_Tool.Pnt_s(TopoDS.Vertex(explorer.Current())).Z())
         explorer.Next()
-    return out
+    return tuple(out)
 
 
 def _section_arcs(face: TopoDS_Face, tip: tuple[float, float, float], z: float) -> list[tuple[float, float]]:

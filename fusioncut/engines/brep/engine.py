@@ -47,7 +47,7 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import (
-    Layer, RegionCutFailure, contact_patches, cut_stack, make_layer, solid_layers, stack_box, stack_solid,
+    CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, make_layer, solid_layers, stack_box, stack_solid,
     stack_volume,
 )
 from fusioncut.engines.brep.occ import (
@@ -61,7 +61,7 @@ from fusioncut.engines.segments import horizontal_direction, segments_for, step_
 from fusioncut.errors import InputError
 from fusioncut.model.angles import immersion_from_machine
 from fusioncut.model.engagement import AngleInterval, CLStatus, EngagementMap, SliceEngagement
-from fusioncut.model.moves import ArcMove, Move, Toolpath
+from fusioncut.model.moves import Move, Toolpath
 from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool, SpindleDirection
 
@@ -297,7 +297,7 @@ class BRepEngine:
         flat, solid = [], []  # the cells cut as layers, and those cut as solids
         for c in candidates:
             if (c.layers is not None and region is not None and len(c.layers) <= MAX_LAYERS
-                    and c.layers[-1].z_hi <= region[3]):
+                    and c.layers[-1].z_hi <= region.z_top):
                 flat.append(c)
             else:
                 solid.append(c)
@@ -335,7 +335,7 @@ class BRepEngine:
                               reason=f"Boolean failed after retries: {exc}; shapes saved to {saved}"), []
         try:
             fuzzies = (self.options.fuzzy or 0.0, *self.options.fuzzy_retries)
-            layered = [(c, *cut_stack(c.layers, region[0], region[2], region[3], fuzzies)) for c in flat]
+            layered = [(c, *cut_stack(c.layers, region.face, region.z_tip, region.z_top, fuzzies)) for c in flat]
         except RegionCutFailure as exc:
             log.error("CL %d (%s): layered Boolean failed: %s", index, move.source, exc)
             return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
@@ -358,7 +358,8 @@ class BRepEngine:
                              method=method, timings=timings)
         contacts = []
         try:
-            candidates = [p for _, _, _, cuts in layered for p in contact_patches(cuts, region[0], move.end[:2], region[1])]
+            candidates = [p for _, _, _, cuts in layered
+                          for p in contact_patches(cuts, region.face, move.end[:2], region.radius)]
             if results:
                 sweep_faces = list(faces(sweep.shape))
                 own = face_map(sweep.shape)
@@ -440,17 +441,15 @@ class BRepEngine:
         raise BooleanFailure(last)
 
     @staticmethod
-    def _cutting_region(motion: Move, tool: MillingTool):
-        """(planar region at z = 0, tool radius, tip height, top height) in mm when layers can take
-        this cut: a tool that is one cylinder, on a horizontal line, an XY arc of up to half a turn
-        or a vertical move; None otherwise."""
+    def _cutting_region(motion: Move, tool: MillingTool) -> CuttingRegion | None:
+        """What the layers take from this cut, when they can: a tool that is one cylinder, on a
+        horizontal line, an XY arc of up to half a turn or a vertical move; None otherwise."""
         cyl = cylinder_tool(tool)
-        flat = _at_height(motion, 0.0) if cyl is not None else None
-        region = cylinder_region(cyl[0], flat) if flat is not None else None
-        if region is None:
+        z_tip, z_end = sorted((motion.start[2], motion.end[2]))
+        if cyl is None or (z_end - z_tip > 1e-9 and math.dist(motion.start[:2], motion.end[:2]) > 1e-9):
             return None
-        z_tip = min(motion.start[2], motion.end[2])
-        return region, cyl[0], z_tip, max(motion.start[2], motion.end[2]) + cyl[1]
+        face = cylinder_region(cyl[0], motion.translated((0.0, 0.0, -z_tip)))  # the region at z = 0
+        return None if face is None else CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1])
 
     def _maybe_merge(self, cell: Cell) -> None:
         if cell.empty or cell.layers is not None:
@@ -478,18 +477,6 @@ def _reach_box(fp, motion: Move, tool: MillingTool) -> tuple[tuple[float, float,
     x0, y0, x1, y1 = fp.box(fp.reach + 1e-6)
     top = max(motion.start[2], motion.end[2]) + tool_radii(tool)[2]
     return (x0, y0, fp.z_low - 1e-6), (x1, y1, top + 1e-6)
-
-
-def _at_height(move: Move, z: float) -> Move | None:
-    """A horizontal or vertical ``move`` moved to height ``z`` (mm), its lower end there; None otherwise."""
-    lo = min(move.start[2], move.end[2])
-    if abs(move.start[2] - move.end[2]) > 1e-9 and math.dist(move.start[:2], move.end[:2]) > 1e-9:
-        return None
-    start = (move.start[0], move.start[1], move.start[2] - lo + z)
-    end = (move.end[0], move.end[1], move.end[2] - lo + z)
-    if isinstance(move, ArcMove):
-        return replace(move, start=start, end=end, center=(move.center[0], move.center[1], z))
-    return replace(move, start=start, end=end)
 
 
 def _on_old_boundary(face, origins, sweep_faces) -> bool:

@@ -153,6 +153,17 @@ def stack_solid(layers: tuple[Layer, ...]) -> TopoDS_Shape:
 
 
 @dataclass(frozen=True)
+class CuttingRegion:
+    """What a cylindrical tool's move takes from a stack: the planar region it covers (faces at
+    z = 0), the tool's radius, and the heights of its tip and of its top (mm)."""
+
+    face: TopoDS_Face
+    radius: float
+    z_tip: float
+    z_top: float
+
+
+@dataclass(frozen=True)
 class LayerCut:
     """One layer cut by a region: the layer after the cut (None when all of it went) and the Cut
     with its history (for the contact edges)."""
@@ -161,7 +172,6 @@ class LayerCut:
     z_hi: float
     new: Layer | None
     op: BOPAlgo_BOP
-    old_region: TopoDS_Shape
 
 
 def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_top: float,
@@ -188,7 +198,7 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_t
         if la.z_hi <= z_tip or untouched_above or not boxes_overlap(la.box, region_box):
             out.append(la)
             continue
-        lost, new_region, op = _cut_region(la.region, region, la.area, fuzzy_values)
+        new_region, op = _cut_region(la.region, region, la.area, fuzzy_values)
         if new_region is None:
             untouched_above = True  # nested regions: nothing lost here, nothing lost above
             out.append(la)
@@ -202,7 +212,7 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_t
         removed += (la.area - (new.area if new else 0.0)) * (la.z_hi - z_lo)
         if new is not None:
             out.append(new)
-        cuts.append(LayerCut(z_lo, la.z_hi, new, op, la.region))
+        cuts.append(LayerCut(z_lo, la.z_hi, new, op))
     return _joined(out), removed, cuts
 
 
@@ -218,7 +228,7 @@ def _joined(layers: list[Layer]) -> tuple[Layer, ...]:
 
 
 def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_values: tuple[float, ...]):
-    """(area lost in mm², the new region or None when nothing is lost, the Cut with its history).
+    """(the new region, the Cut with its history), or (None, None) when nothing is lost.
 
     As in 3D, the Common is an independent check of the Cut: old area − new area = common area.
     """
@@ -234,7 +244,7 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
             continue
         lost = area(common.Shape())
         if lost <= 1e-12 * max(1.0, old_area):
-            return 0.0, None, None
+            return None, None
         cut = boolean(old, tool, pf, BOPAlgo_Operation.BOPAlgo_CUT)
         if cut.HasErrors():
             last = f"2D cut failed (fuzzy={fuzzy})"
@@ -244,7 +254,7 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
         if abs(mismatch) > 1e-6 + 1e-6 * old_area:
             last = f"2D cut and common disagree by {mismatch:.4g} mm² (fuzzy={fuzzy})"
             continue
-        return lost, new, cut
+        return new, cut
     raise RegionCutFailure(last)
 
 
