@@ -19,6 +19,7 @@ from OCP.BRepTools import BRepTools
 from OCP.GC import GC_MakeArcOfCircle
 from OCP.GProp import GProp_GProps
 from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
+from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SOLID, TopAbs_ShapeEnum
 from OCP.TopExp import TopExp, TopExp_Explorer
@@ -227,6 +228,9 @@ def fuse_all(shapes: list[TopoDS_Shape], glue: bool = False, fuzzy: float = 0.0)
     return unify(op.Shape())
 
 
+MERGE_TOLERANCE = 1e-4  # mm: a merged edge looser than this (and 10x the shape's loosest) is a failed merge
+
+
 def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: int = 4) -> TopoDS_Shape:
     """Merge faces that lie on the same surface (what keeps Booleans fast along a path).
 
@@ -240,8 +244,15 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
     merged again, at most ``max_rounds`` times; if no round gives a sound shape, ``shape`` is returned
     unchanged. (Refusing the whole merge instead let that benchmark's workpiece grow from 310 to
     4,382 faces within 120 CLs, and the Boolean median rose from 55–85 ms to 254 ms.)
+
+    A merge is also refused where it leaves an edge looser than ``MERGE_TOLERANCE`` (and ten times
+    the loosest of ``shape``): after a plunge and an arc of the tool's own radius, the merged
+    workpiece was valid and of the right volume but had an 8 mm tolerance edge, and every later
+    Boolean near it came back empty (a 40.8 mm³ cut reported as air). The faces near such an edge
+    are kept like a hole's.
     """
     n_faces = count_faces(shape)
+    tolerance_limit = max(MERGE_TOLERANCE, 10.0 * max_tolerance(shape))
     kept = ShapeMap()  # faces of ``shape`` whose edges must stay
     for _ in range(max_rounds):
         copy = BRepBuilderAPI_Copy(shape)
@@ -258,20 +269,26 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
         change = _enclosed_volume([*faces(merged), *(f.Reversed() for f in faces(shape))])
         reference = abs(shape_volume if shape_volume is not None else volume(shape))
         sound = abs(change) <= 1e-9 * reference + 1e-6
-        if sound and BRepCheck_Analyzer(merged).IsValid():
+        loose = [e for e in edges(merged) if BRep_Tool.Tolerance_s(TopoDS.Edge(e)) > tolerance_limit]
+        if sound and not loose and BRepCheck_Analyzer(merged).IsValid():
             return merged
-        # the faces that reach the hole's rim: the one that went missing and its neighbours (by
-        # bounding boxes: the merge history is slow to query from Python, ~0.2 ms per edge)
-        rim = [bounding_box(e) for e in _free_edges(merged)]
+        # the faces that reach the hole's rim (the one that went missing and its neighbours) or a
+        # loose edge, by bounding boxes: the merge history is slow to query from Python, ~0.2 ms per edge
+        rim = [bounding_box(e, exact=True) for e in (*_free_edges(merged), *loose)]
         culprits = [f for f in faces(shape) if not kept.Contains(f)
                     and any(boxes_overlap(bounding_box(f), b, 1e-6) for b in rim)]
-        log.debug("face merge %d -> %d faces unsound (volume ok: %s); keeping %d faces", n_faces,
-                  count_faces(merged), sound, len(culprits))
+        log.debug("face merge %d -> %d faces unsound (volume ok: %s, loose edges: %d); keeping %d faces",
+                  n_faces, count_faces(merged), sound, len(loose), len(culprits))
         if not culprits:
             return shape
         for f in culprits:
             kept.Add(f)
     return shape
+
+
+def max_tolerance(shape: TopoDS_Shape) -> float:
+    """The largest tolerance (mm) of the vertices, edges and faces of ``shape``."""
+    return ShapeAnalysis_ShapeTolerance().Tolerance(shape, 1)
 
 
 def _free_edges(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
