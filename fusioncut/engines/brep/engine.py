@@ -68,10 +68,8 @@ from fusioncut.model.tools import MillingTool, SpindleDirection
 log = logging.getLogger("fusioncut.engine")
 
 
-# a cut through a stack costs a 2D Boolean (~1.5 ms) per layer it takes material from, so a cell
-# with more layers than this (the ledges a helical entry's steps leave on its bore) goes on as a
-# solid: on the quick benchmark's CLs 997-1800, 6 took 19.6 s, 30 took 23.0 s (all solid: 22.4 s)
-MAX_LAYERS = 6
+# a solid cell is taken back as columns only when it has at most this many heights of up faces
+MAX_LAYERS = 64
 
 
 class BooleanFailure(Exception):
@@ -296,8 +294,7 @@ class BRepEngine:
         region = self._cutting_region(motion, tool) if any(c.layers for c in candidates) else None
         flat, solid = [], []  # the cells cut as layers, and those cut as solids
         for c in candidates:
-            if (c.layers is not None and region is not None and len(c.layers) <= MAX_LAYERS
-                    and c.layers[-1].z_hi <= region.z_top):
+            if c.layers is not None and region is not None and max(la.z_hi for la in c.layers) <= region.z_top:
                 flat.append(c)
             else:
                 solid.append(c)
@@ -358,8 +355,8 @@ class BRepEngine:
                              method=method, timings=timings)
         contacts = []
         try:
-            candidates = [p for _, _, _, cuts in layered
-                          for p in contact_patches(cuts, region.face, move.end[:2], region.radius)]
+            candidates = [p for _, after, _, cuts in layered
+                          for p in contact_patches(cuts, after, move.end[:2], region.radius)]
             if results:
                 sweep_faces = list(faces(sweep.shape))
                 own = face_map(sweep.shape)

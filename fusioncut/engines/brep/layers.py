@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_Operation
+from OCP.BOPAlgo import BOPAlgo_Operation
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Surface
 from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy, BRepBuilderAPI_MakeFace, BRepBuilderAPI_Transform
 from OCP.BRepCheck import BRepCheck_Analyzer
@@ -31,10 +31,9 @@ from OCP.BRepPrimAPI import BRepPrimAPI_MakePrism
 from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Cylinder, GeomAbs_Plane
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.gp import gp_Ax3, gp_Cylinder, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
-from OCP.TopAbs import TopAbs_EDGE, TopAbs_REVERSED
-from OCP.TopExp import TopExp
-from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
-from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
+from OCP.BRepClass import BRepClass_FaceClassifier
+from OCP.TopAbs import TopAbs_IN, TopAbs_REVERSED
+from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 
 from fusioncut.engines.brep.occ import (
     area, boolean, bounding_box, boxes_overlap, edges, faces, fuse_all, intersections, unify, volume,
@@ -109,11 +108,10 @@ def solid_layers(solid: TopoDS_Shape, max_layers: int) -> tuple[Layer, ...] | No
     if not heights or heights[0] - z0 < Z_SNAP:
         return None
     layers = []
-    for j, z_hi in enumerate(heights):
-        tops = [_moved(f, -z) for z in heights[j:] for f in up[z]]
-        region = tops[0] if len(tops) == 1 else _union(tops)
-        layers.append(make_layer(heights[j - 1] if j else z0, z_hi, region))
-    layers = _joined(layers)
+    for z in heights:
+        tops = [_moved(f, -z) for f in up[z]]
+        layers.append(make_layer(z0, z, tops[0] if len(tops) == 1 else _union(tops)))
+    layers = tuple(layers)
     if abs(stack_volume(layers) - volume(solid)) > 1e-9 * stack_volume(layers):
         return None
     return layers
@@ -135,8 +133,8 @@ def stack_box(layers: tuple[Layer, ...]) -> Box:
     z = 0 span ± that much), like the box of the same material as a solid: the material's height
     bounds start from the cells' box tops, and a run resumed from a checkpoint, whose cells may be
     in the other form, must start them at the same height."""
-    return ((min(la.box[0][0] for la in layers), min(la.box[0][1] for la in layers), layers[0].z_lo + layers[0].box[0][2]),
-            (max(la.box[1][0] for la in layers), max(la.box[1][1] for la in layers), layers[-1].z_hi + layers[-1].box[1][2]))
+    return ((min(la.box[0][0] for la in layers), min(la.box[0][1] for la in layers), min(la.z_lo + la.box[0][2] for la in layers)),
+            (max(la.box[1][0] for la in layers), max(la.box[1][1] for la in layers), max(la.z_hi + la.box[1][2] for la in layers)))
 
 
 def stack_volume(layers: tuple[Layer, ...]) -> float:
@@ -165,70 +163,70 @@ class CuttingRegion:
 
 @dataclass(frozen=True)
 class LayerCut:
-    """One layer cut by a region: the layer after the cut (None when all of it went) and the Cut
-    with its history (for the contact edges)."""
+    """What a cut took from one column: ``lost`` (planar faces at z = 0), from ``z_lo`` to
+    ``z_hi`` (mm)."""
 
     z_lo: float
     z_hi: float
-    new: Layer | None
-    op: BOPAlgo_BOP
+    lost: TopoDS_Shape
+
+
+MERGE_COLUMNS = 8  # columns of one height kept apart before they are fused into one
 
 
 def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_top: float,
               fuzzy_values: tuple[float, ...]) -> tuple[tuple[Layer, ...], float, list[LayerCut]]:
-    """The stack after removing the prism of ``region`` (z = 0) from ``z_tip`` to ``z_top`` (mm).
+    """The columns after removing the prism of ``region`` (z = 0) from ``z_tip`` to ``z_top`` (mm).
 
-    Returns (new layers, removed volume in mm³, the cuts of the layers that lost material).
-    ``z_top`` must reach the stack's top (the regions stay nested). Raises
-    :class:`RegionCutFailure` when a 2D Boolean fails with every fuzzy value.
+    Returns (new columns, removed volume in mm³, the cuts of the columns that lost material).
+    ``z_top`` must reach the highest column (no overhang is left). A column whose box misses the
+    region, or whose top is at or below the tip, costs no Boolean: a cut's cost is the number of
+    columns it reaches, not the number of heights in the cell. The parts of the cut columns under
+    the tip are new columns at the tip's height; columns of one height are fused into one when more
+    than ``MERGE_COLUMNS`` of them lie side by side. Raises :class:`RegionCutFailure` when a 2D
+    Boolean fails with every fuzzy value.
     """
-    if z_top < layers[-1].z_hi - Z_SNAP:
+    if z_top < max(la.z_hi for la in layers) - Z_SNAP:
         raise ValueError("a layered cut must reach above the stack")
     region_box = bounding_box(region)
-    # snap the tip to a boundary it nearly touches: a Z_SNAP-thin layer is noise, not material
+    # snap the tip to a height it nearly touches: a Z_SNAP-thin step is noise, not material
     for la in layers:
         for z in (la.z_lo, la.z_hi):
             if abs(z - z_tip) < Z_SNAP:
                 z_tip = z
     out: list[Layer] = []
     cuts: list[LayerCut] = []
+    pieces: list[Layer] = []  # what the cut columns keep under the tip
     removed = 0.0
-    untouched_above = False
     for la in layers:
-        if la.z_hi <= z_tip or untouched_above or not boxes_overlap(la.box, region_box):
+        if la.z_hi <= z_tip or not boxes_overlap(la.box, region_box):
             out.append(la)
             continue
-        new_region, op = _cut_region(la.region, region, la.area, fuzzy_values)
+        new_region, lost = _cut_region(la.region, region, la.area, fuzzy_values)
         if new_region is None:
-            untouched_above = True  # nested regions: nothing lost here, nothing lost above
             out.append(la)
             continue
-        if la.z_lo < z_tip:
-            out.append(Layer(la.z_lo, z_tip, la.region, la.area, la.box))
         z_lo = max(la.z_lo, z_tip)
-        new = make_layer(z_lo, la.z_hi, new_region) if any(True for _ in faces(new_region)) else None
+        new = make_layer(la.z_lo, la.z_hi, new_region) if any(True for _ in faces(new_region)) else None
         if new is not None and new.area <= 1e-12:
             new = None
         removed += (la.area - (new.area if new else 0.0)) * (la.z_hi - z_lo)
         if new is not None:
             out.append(new)
-        cuts.append(LayerCut(z_lo, la.z_hi, new, op))
-    return _joined(out), removed, cuts
-
-
-def _joined(layers: list[Layer]) -> tuple[Layer, ...]:
-    """Neighbours of equal area joined (nested regions of equal area are the same region)."""
-    out: list[Layer] = []
-    for la in layers:
-        if out and abs(out[-1].z_hi - la.z_lo) < Z_SNAP and abs(out[-1].area - la.area) <= 1e-9 * max(1.0, la.area):
-            below = out.pop()
-            la = Layer(below.z_lo, la.z_hi, la.region, la.area, la.box)
-        out.append(la)
-    return tuple(out)
+        if z_tip > la.z_lo:
+            pieces.append(make_layer(la.z_lo, z_tip, lost))
+        cuts.append(LayerCut(z_lo, la.z_hi, lost))
+    if pieces:
+        level = [la for la in out if abs(la.z_hi - z_tip) < Z_SNAP]
+        if len(level) + len(pieces) > MERGE_COLUMNS:
+            out = [la for la in out if abs(la.z_hi - z_tip) >= Z_SNAP]
+            pieces = [make_layer(pieces[0].z_lo, z_tip, _union([la.region for la in (*level, *pieces)]))]
+        out.extend(pieces)
+    return tuple(out), removed, cuts
 
 
 def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_values: tuple[float, ...]):
-    """(the new region, the Cut with its history), or (None, None) when nothing is lost.
+    """(the new region, the region lost), or (None, None) when nothing is lost.
 
     As in 3D, the Common is an independent check of the Cut: old area − new area = common area.
     """
@@ -245,7 +243,7 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
         lost = area(common.Shape())
         if lost <= 1e-12 * max(1.0, old_area):
             return None, None
-        cut = boolean(old, tool, pf, BOPAlgo_Operation.BOPAlgo_CUT)
+        cut = boolean(old, tool, pf, BOPAlgo_Operation.BOPAlgo_CUT, history=False)
         if cut.HasErrors():
             last = f"2D cut failed (fuzzy={fuzzy})"
             continue
@@ -254,39 +252,48 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
         if abs(mismatch) > 1e-6 + 1e-6 * old_area:
             last = f"2D cut and common disagree by {mismatch:.4g} mm² (fuzzy={fuzzy})"
             continue
-        return new, cut
+        return new, common.Shape()
     raise RegionCutFailure(last)
 
 
-def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[float, float], radius: float,
+def contact_patches(cuts: list[LayerCut], after: tuple[Layer, ...], center: tuple[float, float], radius: float,
                     tol: float = 1e-6) -> list[TopoDS_Face]:
-    """Faces on the tool's cylinder (axis through ``center``, ``radius`` mm) where the cut layers'
-    new boundaries come from the cutting region's edges on that circle: the engaged arcs, extruded
-    over each layer's height. An edge that also comes from the layer's old boundary is a wall the
-    tool only grazes (no chip), and is left out, as the 3D engine leaves out such faces.
+    """Faces on the tool's cylinder (axis through ``center``, ``radius`` mm) where the tool cut
+    material that is left beside it: the circle's arcs on the lost pieces' boundaries, each from
+    the tip up to the lower of the piece's column top and the top of the column just outside the
+    circle after the cut (``after``). Inside the end circle every column above the tip was cut,
+    so an arc with material cut on the inside and material left outside is engaged; where no
+    material was inside (a wall the tool only grazes) there is no lost piece, and the arc is left
+    out, as the 3D engine leaves out such faces.
     """
-    own = ShapeMap()
-    TopExp.MapShapes_s(region, TopAbs_EDGE, own)
-    on_circle = [e for e in edges(region) if _on_circle(e, center, radius, tol)]
+    ax = gp_Ax3(gp_Pnt(center[0], center[1], 0.0), gp_Dir(0.0, 0.0, 1.0), gp_Dir(1.0, 0.0, 0.0))
     patches = []
     for c in cuts:
-        if c.new is None:
-            continue
-        kept = ShapeMap()
-        TopExp.MapShapes_s(c.new.region, TopAbs_EDGE, kept)
-        origins = c.op.Origins()
-        for e in on_circle:
-            images = c.op.Modified(e)
-            found = [TopoDS.Edge(s) for s in images] if images.Size() else [] if c.op.IsDeleted(e) else [e]
-            for g in found:
-                if not kept.Contains(g):
-                    continue
-                if origins.IsBound(g) and any(not own.Contains(s) for s in origins.Find(g)):
-                    continue
-                a0, a1 = _arc_angles(g, center)
-                ax = gp_Ax3(gp_Pnt(center[0], center[1], 0.0), gp_Dir(0.0, 0.0, 1.0), gp_Dir(1.0, 0.0, 0.0))
-                patches.append(BRepBuilderAPI_MakeFace(gp_Cylinder(ax, radius), a0, a1, c.z_lo, c.z_hi).Face())
+        for e in edges(c.lost):
+            if not _on_circle(e, center, radius, tol):
+                continue
+            a0, a1 = _arc_angles(e, center)
+            z_hi = min(c.z_hi, _height_at(after, center, radius + OUTSIDE, 0.5 * (a0 + a1)))
+            if z_hi > c.z_lo + Z_SNAP:
+                patches.append(BRepBuilderAPI_MakeFace(gp_Cylinder(ax, radius), a0, a1, c.z_lo, z_hi).Face())
     return patches
+
+
+OUTSIDE = 1e-5  # mm: how far outside the tool's circle the material left is looked up
+
+
+def _height_at(columns: tuple[Layer, ...], center: tuple[float, float], r: float, angle: float) -> float:
+    """The top (mm) of the column holding the point at ``r`` mm and ``angle`` rad about
+    ``center``; -inf where none holds it."""
+    x, y = center[0] + r * math.cos(angle), center[1] + r * math.sin(angle)
+    for la in columns:
+        (x0, y0, _), (x1, y1, _) = la.box
+        if not (x0 <= x <= x1 and y0 <= y <= y1):
+            continue
+        for f in faces(la.region):
+            if BRepClass_FaceClassifier(f, gp_Pnt(x, y, 0.0), 1e-9).State() == TopAbs_IN:
+                return la.z_hi
+    return -math.inf
 
 
 def _on_circle(edge, center: tuple[float, float], radius: float, tol: float) -> bool:

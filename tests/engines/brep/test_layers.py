@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
-from fusioncut.engines.brep.layers import cut_stack, solid_layers, stack_solid, stack_volume
+from fusioncut.engines.brep.layers import MERGE_COLUMNS, cut_stack, solid_layers, stack_solid, stack_volume
 from fusioncut.engines.brep.occ import MERGE_TOLERANCE, max_tolerance, volume
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import cylinder_region, swept_volume
@@ -33,26 +33,51 @@ def test_a_box_is_one_layer():
     assert layer.volume == pytest.approx(BLOCK.volume, rel=1e-12)
 
 
+def _assert_columns(layers, expected):
+    """The columns' (bottom, top, area), in any order, are the expected ones (1e-9 relative)."""
+    got = sorted((la.z_lo, la.z_hi, la.area) for la in layers)
+    assert len(got) == len(expected)
+    for g, e in zip(got, sorted(expected)):
+        assert g == pytest.approx(e, rel=1e-9)
+
+
 def test_a_plunge_and_a_slot_take_the_closed_form_volumes():
     r = 3.0
     disk = cylinder_region(r, LinearMove((10.0, 15.0, 2.0), (10.0, 15.0, 0.0)))  # regions lie at z = 0
     layers, removed, cuts = cut_stack(box_layers(), disk, -4.0, 20.0, FUZZY)
-    assert removed == pytest.approx(math.pi * r * r * 4.0, rel=1e-9)
-    assert [(la.z_lo, la.z_hi) for la in layers] == [(-10.0, -4.0), (-4.0, 0.0)]
+    hole = math.pi * r * r
+    assert removed == pytest.approx(hole * 4.0, rel=1e-9)
+    # the block less the hole, full height; the hole's floor, a column 4 mm lower
+    _assert_columns(layers, [(-10.0, -4.0, hole), (-10.0, 0.0, 1200.0 - hole)])
     assert len(cuts) == 1
     # a slot from the hole, 2 mm deeper: a stadium 2 mm deep under the hole's floor, and the
-    # stadium less the hole's disk 4 mm above it
+    # stadium less the hole's disk 6 mm deep; the two lost pieces stay two columns at -6 mm
+    # (columns of one height are fused only past MERGE_COLUMNS)
     line = LinearMove((10.0, 15.0, 0.0), (25.0, 15.0, 0.0))
     stadium = cylinder_region(r, line)
-    layers, removed, _ = cut_stack(layers, stadium, -6.0, 20.0, FUZZY)
-    area = 15.0 * 2 * r + math.pi * r * r
-    assert removed == pytest.approx(area * 2.0 + (area - math.pi * r * r) * 4.0, rel=1e-9)
-    # the hole's layer and the slot's are now one region: joined
-    assert [(la.z_lo, la.z_hi) for la in layers] == [(-10.0, -6.0), (-6.0, 0.0)]
-    assert stack_volume(layers) == pytest.approx(BLOCK.volume - math.pi * r * r * 4.0 - removed, rel=1e-12)
+    layers, removed, cuts = cut_stack(layers, stadium, -6.0, 20.0, FUZZY)
+    area = 15.0 * 2 * r + hole
+    assert removed == pytest.approx(hole * 2.0 + (area - hole) * 6.0, rel=1e-9)
+    assert len(cuts) == 2
+    _assert_columns(layers, [(-10.0, -6.0, area - hole), (-10.0, -6.0, hole), (-10.0, 0.0, 1200.0 - area)])
+    assert stack_volume(layers) == pytest.approx(BLOCK.volume - hole * 4.0 - removed, rel=1e-12)
     # the same cut again removes nothing
     again, nothing, cuts = cut_stack(layers, stadium, -6.0, 20.0, FUZZY)
     assert nothing == 0.0 and cuts == [] and again == layers
+
+
+def test_columns_of_one_height_are_fused_past_the_limit():
+    """A row of plunges at one depth: each leaves a disk column, until more than MERGE_COLUMNS of
+    them lie at that height; then they are one column (of the disks' area, the volume kept)."""
+    layers = box_layers()
+    r = 1.5
+    for k in range(MERGE_COLUMNS + 1):
+        disk = cylinder_region(r, LinearMove((3.0 + 4.0 * k, 15.0, 1.0), (3.0 + 4.0 * k, 15.0, 0.0)))
+        layers, removed, _ = cut_stack(layers, disk, -2.0, 20.0, FUZZY)
+        assert removed == pytest.approx(math.pi * r * r * 2.0, rel=1e-9)
+        assert len(layers) == (k + 2 if k + 1 <= MERGE_COLUMNS else 2)
+    holes = (MERGE_COLUMNS + 1) * math.pi * r * r
+    _assert_columns(layers, [(-10.0, -2.0, holes), (-10.0, 0.0, 1200.0 - holes)])
 
 
 def test_a_cut_must_reach_above_the_stack():
@@ -62,15 +87,19 @@ def test_a_cut_must_reach_above_the_stack():
 
 def test_the_solid_of_a_stack_is_layered_back_the_same():
     layers = box_layers()
-    for z, p0, p1 in ((-3.0, (5, 5, 0), (30, 8, 0)), (-5.0, (12, 20, 0), (12, 20, 0)), (-1.0, (0, 25, 0), (35, 25, 0))):
+    for z, p0, p1 in ((-3.0, (5, 5, 0), (30, 8, 0)), (-5.0, (12, 20, 0), (12, 20, 0)), (-1.0, (0, 25, 0), (35, 25, 0)),
+                      (-3.0, (30, 20, 0), (30, 20, 0))):
         layers, _, _ = cut_stack(layers, cylinder_region(4.0, LinearMove(p0, p1)), z, 30.0, FUZZY)
     solid = stack_solid(layers)
     assert volume(solid) == pytest.approx(stack_volume(layers), rel=1e-9)
     back = solid_layers(solid, 6)
     assert back is not None
-    assert [(la.z_lo, la.z_hi) for la in back] == [(la.z_lo, la.z_hi) for la in layers]
-    for a, b in zip(back, layers):
-        assert a.area == pytest.approx(b.area, rel=1e-9)
+    # the columns of one height come back as one
+    heights = sorted({la.z_hi for la in layers})
+    assert [la.z_hi for la in sorted(back, key=lambda la: la.z_hi)] == heights
+    for z in heights:
+        assert sum(la.area for la in back if la.z_hi == z) == pytest.approx(
+            sum(la.area for la in layers if la.z_hi == z), rel=1e-9)
 
 
 def test_a_ball_end_cut_is_not_layered():

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep import engine as engine_mod
+from fusioncut.engines.brep import layers as layers_mod
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.occ import bounding_box
 from fusioncut.engines.brep.sweep import swept_volume
@@ -77,7 +78,7 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
         return real(self, ipw, sweep, ipw_volume)
 
     monkeypatch.setattr(BRepEngine, "_subtract", flaky)
-    eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0))
+    eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0, layers=False))
     maps = list(eng.run(program(10, 2), STOCK))
     failed = [m for m in maps if m.status == CLStatus.FAILED]
     assert len(failed) == 1
@@ -86,6 +87,26 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
                                                           f"cl{failed[0].cl_index:06d}_sweep.brep"]
     assert failed[0].cl_index < maps[-1].cl_index  # the run went on
     # what the later CLs removed still adds up
+    assert STOCK.volume - eng.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-6)
+
+
+def test_a_failed_boolean_of_the_columns_marks_the_cl_and_goes_on(monkeypatch):
+    calls = {"n": 0}
+    real = layers_mod._cut_region
+
+    def flaky(*args):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise layers_mod.RegionCutFailure("simulated 2D kernel failure")
+        return real(*args)
+
+    monkeypatch.setattr(layers_mod, "_cut_region", flaky)
+    eng = BRepEngine(EngineOptions(max_segment_length=6.0))
+    maps = list(eng.run(program(10, 2), STOCK))
+    failed = [m for m in maps if m.status == CLStatus.FAILED]
+    assert len(failed) == 1
+    assert "simulated 2D kernel failure" in failed[0].reason
+    assert failed[0].cl_index < maps[-1].cl_index  # the run went on
     assert STOCK.volume - eng.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-6)
 
 
