@@ -1,5 +1,5 @@
-"""Layered cells: the 2.5D stack against closed forms, against the solid it stands for, and the
-layered engine against the all-solid engine on random flat-end-mill programs."""
+"""2.5D cells as columns: against closed forms, against the solid they stand for, and the
+column form of the engine against the all-solid engine on random flat-end-mill programs."""
 from __future__ import annotations
 
 import math
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
-from fusioncut.engines.brep.layers import MERGE_COLUMNS, cut_stack, solid_layers, stack_solid, stack_volume
+from fusioncut.engines.brep.columns import MERGE_COLUMNS, cut_columns, solid_columns, columns_solid, columns_volume
 from fusioncut.engines.brep.occ import MERGE_TOLERANCE, max_tolerance, volume
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import cylinder_region, swept_volume
@@ -20,22 +20,22 @@ BLOCK = BoxStock((0.0, 0.0, -10.0), (40.0, 30.0, 0.0))
 FUZZY = (0.0, 1e-6)
 
 
-def box_layers():
-    layers = solid_layers(stock_solid(BLOCK), 6)
-    assert layers is not None and len(layers) == 1
-    return layers
+def box_columns():
+    columns = solid_columns(stock_solid(BLOCK), 6)
+    assert columns is not None and len(columns) == 1
+    return columns
 
 
 def test_a_box_is_one_layer():
-    (layer,) = box_layers()
-    assert (layer.z_lo, layer.z_hi) == (-10.0, 0.0)
-    assert layer.area == pytest.approx(1200.0, rel=1e-12)
-    assert layer.volume == pytest.approx(BLOCK.volume, rel=1e-12)
+    (column,) = box_columns()
+    assert (column.z_lo, column.z_hi) == (-10.0, 0.0)
+    assert column.area == pytest.approx(1200.0, rel=1e-12)
+    assert column.volume == pytest.approx(BLOCK.volume, rel=1e-12)
 
 
-def _assert_columns(layers, expected):
+def _assert_columns(columns, expected):
     """The columns' (bottom, top, area), in any order, are the expected ones (1e-9 relative)."""
-    got = sorted((la.z_lo, la.z_hi, la.area) for la in layers)
+    got = sorted((col.z_lo, col.z_hi, col.area) for col in columns)
     assert len(got) == len(expected)
     for g, e in zip(got, sorted(expected)):
         assert g == pytest.approx(e, rel=1e-9)
@@ -44,62 +44,62 @@ def _assert_columns(layers, expected):
 def test_a_plunge_and_a_slot_take_the_closed_form_volumes():
     r = 3.0
     disk = cylinder_region(r, LinearMove((10.0, 15.0, 2.0), (10.0, 15.0, 0.0)))  # regions lie at z = 0
-    layers, removed, cuts = cut_stack(box_layers(), disk, -4.0, 20.0, FUZZY)
+    columns, removed, cuts = cut_columns(box_columns(), disk, -4.0, 20.0, FUZZY)
     hole = math.pi * r * r
     assert removed == pytest.approx(hole * 4.0, rel=1e-9)
     # the block less the hole, full height; the hole's floor, a column 4 mm lower
-    _assert_columns(layers, [(-10.0, -4.0, hole), (-10.0, 0.0, 1200.0 - hole)])
+    _assert_columns(columns, [(-10.0, -4.0, hole), (-10.0, 0.0, 1200.0 - hole)])
     assert len(cuts) == 1
     # a slot from the hole, 2 mm deeper: a stadium 2 mm deep under the hole's floor, and the
     # stadium less the hole's disk 6 mm deep; the two lost pieces stay two columns at -6 mm
     # (columns of one height are fused only past MERGE_COLUMNS)
     line = LinearMove((10.0, 15.0, 0.0), (25.0, 15.0, 0.0))
     stadium = cylinder_region(r, line)
-    layers, removed, cuts = cut_stack(layers, stadium, -6.0, 20.0, FUZZY)
+    columns, removed, cuts = cut_columns(columns, stadium, -6.0, 20.0, FUZZY)
     area = 15.0 * 2 * r + hole
     assert removed == pytest.approx(hole * 2.0 + (area - hole) * 6.0, rel=1e-9)
     assert len(cuts) == 2
-    _assert_columns(layers, [(-10.0, -6.0, area - hole), (-10.0, -6.0, hole), (-10.0, 0.0, 1200.0 - area)])
-    assert stack_volume(layers) == pytest.approx(BLOCK.volume - hole * 4.0 - removed, rel=1e-12)
+    _assert_columns(columns, [(-10.0, -6.0, area - hole), (-10.0, -6.0, hole), (-10.0, 0.0, 1200.0 - area)])
+    assert columns_volume(columns) == pytest.approx(BLOCK.volume - hole * 4.0 - removed, rel=1e-12)
     # the same cut again removes nothing
-    again, nothing, cuts = cut_stack(layers, stadium, -6.0, 20.0, FUZZY)
-    assert nothing == 0.0 and cuts == [] and again == layers
+    again, nothing, cuts = cut_columns(columns, stadium, -6.0, 20.0, FUZZY)
+    assert nothing == 0.0 and cuts == [] and again == columns
 
 
 def test_columns_of_one_height_are_fused_past_the_limit():
     """A row of plunges at one depth: each leaves a disk column, until more than MERGE_COLUMNS of
     them lie at that height; then they are one column (of the disks' area, the volume kept)."""
-    layers = box_layers()
+    columns = box_columns()
     r = 1.5
     for k in range(MERGE_COLUMNS + 1):
         disk = cylinder_region(r, LinearMove((3.0 + 4.0 * k, 15.0, 1.0), (3.0 + 4.0 * k, 15.0, 0.0)))
-        layers, removed, _ = cut_stack(layers, disk, -2.0, 20.0, FUZZY)
+        columns, removed, _ = cut_columns(columns, disk, -2.0, 20.0, FUZZY)
         assert removed == pytest.approx(math.pi * r * r * 2.0, rel=1e-9)
-        assert len(layers) == (k + 2 if k + 1 <= MERGE_COLUMNS else 2)
+        assert len(columns) == (k + 2 if k + 1 <= MERGE_COLUMNS else 2)
     holes = (MERGE_COLUMNS + 1) * math.pi * r * r
-    _assert_columns(layers, [(-10.0, -2.0, holes), (-10.0, 0.0, 1200.0 - holes)])
+    _assert_columns(columns, [(-10.0, -2.0, holes), (-10.0, 0.0, 1200.0 - holes)])
 
 
-def test_a_cut_must_reach_above_the_stack():
+def test_a_cut_must_reach_above_the_columns():
     with pytest.raises(ValueError):
-        cut_stack(box_layers(), cylinder_region(3.0, LinearMove((5, 5, 1), (5, 5, 0))), -5.0, -1.0, FUZZY)
+        cut_columns(box_columns(), cylinder_region(3.0, LinearMove((5, 5, 1), (5, 5, 0))), -5.0, -1.0, FUZZY)
 
 
-def test_the_solid_of_a_stack_is_layered_back_the_same():
-    layers = box_layers()
+def test_the_solid_of_columns_gives_them_back():
+    columns = box_columns()
     for z, p0, p1 in ((-3.0, (5, 5, 0), (30, 8, 0)), (-5.0, (12, 20, 0), (12, 20, 0)), (-1.0, (0, 25, 0), (35, 25, 0)),
                       (-3.0, (30, 20, 0), (30, 20, 0))):
-        layers, _, _ = cut_stack(layers, cylinder_region(4.0, LinearMove(p0, p1)), z, 30.0, FUZZY)
-    solid = stack_solid(layers)
-    assert volume(solid) == pytest.approx(stack_volume(layers), rel=1e-9)
-    back = solid_layers(solid, 6)
+        columns, _, _ = cut_columns(columns, cylinder_region(4.0, LinearMove(p0, p1)), z, 30.0, FUZZY)
+    solid = columns_solid(columns)
+    assert volume(solid) == pytest.approx(columns_volume(columns), rel=1e-9)
+    back = solid_columns(solid, 6)
     assert back is not None
     # the columns of one height come back as one
-    heights = sorted({la.z_hi for la in layers})
-    assert [la.z_hi for la in sorted(back, key=lambda la: la.z_hi)] == heights
+    heights = sorted({col.z_hi for col in columns})
+    assert [col.z_hi for col in sorted(back, key=lambda col: col.z_hi)] == heights
     for z in heights:
-        assert sum(la.area for la in back if la.z_hi == z) == pytest.approx(
-            sum(la.area for la in layers if la.z_hi == z), rel=1e-9)
+        assert sum(col.area for col in back if col.z_hi == z) == pytest.approx(
+            sum(col.area for col in columns if col.z_hi == z), rel=1e-9)
 
 
 def test_a_ball_end_cut_is_not_layered():
@@ -107,9 +107,9 @@ def test_a_ball_end_cut_is_not_layered():
     from fusioncut.engines.brep.occ import BRepAlgoAPI_Cut
 
     sweep = swept_volume(BallEndMill(6.0, 20.0), LinearMove((5, 15, -2), (30, 15, -2))).shape
-    assert solid_layers(BRepAlgoAPI_Cut(solid, sweep).Shape(), 6) is None
+    assert solid_columns(BRepAlgoAPI_Cut(solid, sweep).Shape(), 6) is None
     flat = swept_volume(FlatEndMill(6.0, 20.0), LinearMove((5, 15, -2), (30, 15, -2))).shape
-    assert solid_layers(BRepAlgoAPI_Cut(solid, flat).Shape(), 6) is not None
+    assert solid_columns(BRepAlgoAPI_Cut(solid, flat).Shape(), 6) is not None
 
 
 def _same(a, b):
@@ -126,8 +126,8 @@ def _same(a, b):
 
 
 # on a 0.5 mm grid, as programs are: with arbitrary floats hypothesis found holes offset by 1-15 µm,
-# where the solid and the layered kernels' slivers differ by 1e-6..3e-4 mm³ (the solid engine alone
-# then broke conservation by 1.6e-5 mm³ once) - the kernel's tolerance, not the layers, is tested there
+# where the solid and the column form's kernel slivers differ by 1e-6..3e-4 mm³ (the solid engine alone
+# then broke conservation by 1.6e-5 mm³ once) - the kernel's tolerance, not the columns, is tested there
 point = st.tuples(st.integers(-10, 90).map(lambda k: 0.5 * k), st.integers(-10, 70).map(lambda k: 0.5 * k),
                   st.sampled_from([-1.0, -2.5, -4.0]))
 
@@ -135,7 +135,7 @@ point = st.tuples(st.integers(-10, 90).map(lambda k: 0.5 * k), st.integers(-10, 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(points=st.lists(point, min_size=2, max_size=5), arc=st.sampled_from([None, 4.0, 6.0]), cell_size=st.sampled_from([None, 15.0]))
 def test_layered_cells_equal_solid_cells(points, arc, cell_size):
-    """Random flat-end-mill programs (plunges, lines, an arc; several depths): the layered engine
+    """Random flat-end-mill programs (plunges, lines, an arc; several depths): the column form
     gives the all-solid engine's results CL by CL, and both conserve volume. An arc (a half turn)
     has the tool's radius (4 mm) or more."""
     moves = [LinearMove((points[0][0], points[0][1], 5.0), points[0], tool=1, feed=500.0)]
@@ -149,10 +149,10 @@ def test_layered_cells_equal_solid_cells(points, arc, cell_size):
                              tool=1, feed=500.0))
     program = Toolpath(tuple(moves), {1: FlatEndMill(8.0, 25.0, number=1)})
     runs = {}
-    for layers in (True, False):
-        engine = BRepEngine(EngineOptions(max_segment_length=4.0, cell_size=cell_size, layers=layers))
-        runs[layers] = list(engine.run(program, BLOCK))
-        assert not [m for m in runs[layers] if m.status == CLStatus.FAILED]
+    for columns in (True, False):
+        engine = BRepEngine(EngineOptions(max_segment_length=4.0, cell_size=cell_size, columns=columns))
+        runs[columns] = list(engine.run(program, BLOCK))
+        assert not [m for m in runs[columns] if m.status == CLStatus.FAILED]
         assert abs(engine.stock_volume - engine.ipw_volume - engine.removed_total) <= 1e-9 * engine.stock_volume
     for a, b in zip(runs[True], runs[False], strict=True):
         _same(a, b)
@@ -161,15 +161,15 @@ def test_layered_cells_equal_solid_cells(points, arc, cell_size):
 def test_an_arc_only_grazed_is_no_engagement_in_layers_either():
     """A slot along +x ends at the origin; a second slot along +y ends there too. Its front arc
     lies on the first slot's end wall for a quarter turn (zero chip: grazed) while it cuts new
-    material behind: the layers must leave that quarter out, as the solids do."""
+    material behind: the columns must leave that quarter out, as the solids do."""
     tool = FlatEndMill(10.0, 20.0, number=1)
     moves = (LinearMove((-30, 0, -3), (0, 0, -3), tool=1, feed=500.0), LinearMove((0, 0, -3), (0, 0, 5), tool=1, rapid=True),
              LinearMove((0, -30, 5), (0, -30, -3), tool=1, feed=500.0), LinearMove((0, -30, -3), (0, 0, -3), tool=1, feed=500.0))
     stock = BoxStock((-20.0, -20.0, -10.0), (20.0, 20.0, 0.0))
     runs = {}
-    for layers in (True, False):
-        engine = BRepEngine(EngineOptions(max_segment_length=40.0, cell_size=None, layers=layers))
-        runs[layers] = list(engine.run(Toolpath(moves, {1: tool}), stock))
+    for columns in (True, False):
+        engine = BRepEngine(EngineOptions(max_segment_length=40.0, cell_size=None, columns=columns))
+        runs[columns] = list(engine.run(Toolpath(moves, {1: tool}), stock))
     last = runs[True][-1]
     assert last.removed_volume > 0
     for a, b in zip(runs[True], runs[False], strict=True):
@@ -187,11 +187,11 @@ def test_an_arc_of_the_tool_radius_cuts_the_same_in_solids():
              ArcMove((1.0, -0.5, -2.5), (9.0, -0.5, -2.5), center=(5.0, -0.5, -2.5), tool=1, feed=500.0))
     program = Toolpath(moves, {1: FlatEndMill(8.0, 25.0, number=1)})
     runs = {}
-    for layers in (True, False):
-        engine = BRepEngine(EngineOptions(max_segment_length=4.0, cell_size=None, layers=layers))
-        runs[layers] = []
+    for columns in (True, False):
+        engine = BRepEngine(EngineOptions(max_segment_length=4.0, cell_size=None, columns=columns))
+        runs[columns] = []
         for m in engine.run(program, BLOCK):
-            runs[layers].append(m)
+            runs[columns].append(m)
             assert max_tolerance(engine.ipw) <= MERGE_TOLERANCE, m.cl_index
     assert runs[True][-1].removed_volume > 40.0
     for a, b in zip(runs[True], runs[False], strict=True):
