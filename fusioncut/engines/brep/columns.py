@@ -52,21 +52,30 @@ class RegionCutFailure(Exception):
 
 @dataclass(frozen=True)
 class Column:
-    """Material between ``z_lo`` and ``z_hi`` (mm): ``region`` (planar faces at z = 0) extruded."""
+    """Material between ``z_lo`` and ``z_hi`` (mm): ``region`` (planar faces at z = 0) extruded.
+
+    ``tier``: how many rounds of merging built it (0: a piece one cut left under its tip; see
+    :func:`cut_columns`); ``WHOLE_TIER``: all of its height when it was made (taken from a solid,
+    or its level merged after the tool left it).
+    """
 
     z_lo: float
     z_hi: float
     region: TopoDS_Shape
     area: float  # mm²
     box: Box  # the region's bounding box (z = 0)
+    tier: int = 0
 
     @property
     def volume(self) -> float:
         return self.area * (self.z_hi - self.z_lo)
 
 
-def make_column(z_lo: float, z_hi: float, region: TopoDS_Shape) -> Column:
-    return Column(z_lo, z_hi, region, area(region), bounding_box(region))
+WHOLE_TIER = 1000
+
+
+def make_column(z_lo: float, z_hi: float, region: TopoDS_Shape, tier: int = 0) -> Column:
+    return Column(z_lo, z_hi, region, area(region), bounding_box(region), tier)
 
 
 def _moved(shape: TopoDS_Shape, dz: float) -> TopoDS_Shape:
@@ -112,7 +121,7 @@ def solid_columns(solid: TopoDS_Shape, max_heights: int) -> tuple[Column, ...] |
     columns = []
     for z in heights:
         tops = [_moved(f, -z) for f in up[z]]
-        columns.append(make_column(z0, z, tops[0] if len(tops) == 1 else _union(tops)))
+        columns.append(make_column(z0, z, tops[0] if len(tops) == 1 else _union(tops), WHOLE_TIER))
     columns = tuple(columns)
     if abs(columns_volume(columns) - volume(solid)) > 1e-9 * columns_volume(columns):
         return None
@@ -173,7 +182,7 @@ class ColumnCut:
     lost: TopoDS_Shape
 
 
-MERGE_COLUMNS = 8  # columns of one height kept apart before they are fused into one (see cut_columns)
+MERGE_COLUMNS = 8  # columns of one height and tier kept apart before they are fused (see cut_columns)
 
 
 def cut_columns(columns: tuple[Column, ...], region: TopoDS_Shape, z_tip: float, z_top: float,
@@ -184,9 +193,11 @@ def cut_columns(columns: tuple[Column, ...], region: TopoDS_Shape, z_tip: float,
     ``z_top`` must reach the highest column (no overhang is left). A column whose box misses the
     region, or whose top is at or below the tip, costs no Boolean: a cut's cost is the number of
     columns it reaches, not the number of heights in the cell. The parts of the cut columns under
-    the tip are new columns at the tip's height; the columns of one height are fused into one when
-    there are more than ``MERGE_COLUMNS`` of them (measured on the quick benchmark's adaptive
-    operation: 4 or 8 36.2–36.4 s, 1 39.6 s, 32 42.1 s). Raises :class:`RegionCutFailure` when a 2D
+    the tip are new columns at the tip's height, of tier 0; when more than ``MERGE_COLUMNS`` columns
+    of one height have one tier, they are fused into one of the next tier, and so on up. Merged in
+    tiers, a piece takes part in a few merges of regions of its own size; merged straight into
+    the one big floor column of its height, each merge handled that whole floor (on the full
+    benchmark's adaptive CLs 5000-7000, merges took 5.1 of 16 s). Raises :class:`RegionCutFailure` when a 2D
     Boolean fails with every fuzzy value.
     """
     if z_top < max(col.z_hi for col in columns) - Z_SNAP:
@@ -210,7 +221,7 @@ def cut_columns(columns: tuple[Column, ...], region: TopoDS_Shape, z_tip: float,
             out.append(col)
             continue
         z_lo = max(col.z_lo, z_tip)
-        new = make_column(col.z_lo, col.z_hi, new_region) if any(True for _ in faces(new_region)) else None
+        new = make_column(col.z_lo, col.z_hi, new_region, col.tier) if any(True for _ in faces(new_region)) else None
         if new is not None and new.area <= 1e-12:
             new = None
         removed += (col.area - (new.area if new else 0.0)) * (col.z_hi - z_lo)
@@ -219,13 +230,41 @@ def cut_columns(columns: tuple[Column, ...], region: TopoDS_Shape, z_tip: float,
         if z_tip > col.z_lo:
             pieces.append(make_column(col.z_lo, z_tip, lost))
         cuts.append(ColumnCut(z_lo, col.z_hi, lost))
-    if pieces:
-        level = [col for col in out if abs(col.z_hi - z_tip) < Z_SNAP]
-        if len(level) + len(pieces) > MERGE_COLUMNS:
-            out = [col for col in out if abs(col.z_hi - z_tip) >= Z_SNAP]
-            pieces = [make_column(pieces[0].z_lo, z_tip, _union([col.region for col in (*level, *pieces)]))]
-        out.extend(pieces)
+    out.extend(pieces)
+    tier = 0
+    while pieces:
+        level = [col for col in out if col.tier == tier and abs(col.z_hi - z_tip) < Z_SNAP]
+        if len(level) <= MERGE_COLUMNS:
+            break
+        out = [col for col in out if not (col.tier == tier and abs(col.z_hi - z_tip) < Z_SNAP)]
+        out.append(make_column(level[0].z_lo, z_tip, _union([col.region for col in level]), tier + 1))
+        tier += 1
+    if cuts:
+        out = _merge_levels(out, z_tip)
     return tuple(out), removed, cuts
+
+
+def _merge_levels(columns: list[Column], z_tip: float) -> list[Column]:
+    """The columns with those of each height other than ``z_tip`` fused into one.
+
+    A tool that cuts at another height has left those levels (or comes back to them rarely): one
+    column per level means one Boolean for a cut that reaches the level, where its pieces would
+    each cost one (on a mid-size Titan-like program, trochoids one level down cut ~4 pieces of the
+    level above per CL).
+    """
+    levels: dict[float, list[Column]] = {}
+    for col in columns:
+        if abs(col.z_hi - z_tip) >= Z_SNAP:
+            key = next((z for z in levels if abs(z - col.z_hi) < Z_SNAP), col.z_hi)
+            levels.setdefault(key, []).append(col)
+    merged = {id(col) for level in levels.values() if len(level) > 1 for col in level}
+    if not merged:
+        return columns
+    out = [col for col in columns if id(col) not in merged]
+    for level in levels.values():
+        if len(level) > 1:
+            out.append(make_column(level[0].z_lo, level[0].z_hi, _union([col.region for col in level]), WHOLE_TIER))
+    return out
 
 
 def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_values: tuple[float, ...]):

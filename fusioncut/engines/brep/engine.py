@@ -205,7 +205,7 @@ class BRepEngine:
         os.replace(folder / (name + ".tmp"), folder / name)
         state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
                  "removed_total": self.removed_total, "faces_at_merge": [c.faces_at_merge for c in self.cells],
-                 "columns": [[(col.z_lo, col.z_hi) for col in c.columns] if c.columns else None for c in self.cells]}
+                 "columns": [[(col.z_lo, col.z_hi, col.tier) for col in c.columns] if c.columns else None for c in self.cells]}
         (folder / "state.json.tmp").write_text(json.dumps(state))
         os.replace(folder / "state.json.tmp", folder / "state.json")
         for old in folder.glob("ipw-*.bbrep"):
@@ -228,7 +228,7 @@ class BRepEngine:
         for child, merged, zs in zip(children(ipw), state["faces_at_merge"], heights):
             cell = Cell(None, None, merged)
             if zs:
-                cell.set_columns(tuple(make_column(z0, z1, region) for region, (z0, z1) in zip(children(child), zs)))
+                cell.set_columns(tuple(make_column(z0, z1, region, tier) for region, (z0, z1, tier) in zip(children(child), zs)))
             else:
                 cell.set(child)
             self.cells.append(cell)

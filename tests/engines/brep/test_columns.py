@@ -66,18 +66,24 @@ def test_a_plunge_and_a_slot_take_the_closed_form_volumes():
     assert nothing == 0.0 and cuts == [] and again == columns
 
 
-def test_columns_of_one_height_are_fused_past_the_limit():
-    """A row of plunges at one depth: each leaves a disk column, until more than MERGE_COLUMNS of
-    them lie at that height; then they are one column (of the disks' area, the volume kept)."""
+def test_columns_of_one_height_are_merged_in_tiers():
+    """A grid of plunges at one depth: each leaves a disk column (tier 0); past MERGE_COLUMNS of
+    them they become one column of tier 1, past MERGE_COLUMNS of those one of tier 2. Volume and
+    areas are kept through every merge."""
     columns = box_columns()
-    r = 1.5
-    for k in range(MERGE_COLUMNS + 1):
-        disk = cylinder_region(r, LinearMove((3.0 + 4.0 * k, 15.0, 1.0), (3.0 + 4.0 * k, 15.0, 0.0)))
+    r, n = 0.5, MERGE_COLUMNS + 1
+    disk_area = math.pi * r * r
+    for k in range(n * n):
+        x, y = 2.0 + 4.0 * (k % n), 3.0 + 3.0 * (k // n)
+        disk = cylinder_region(r, LinearMove((x, y, 1.0), (x, y, 0.0)))
         columns, removed, _ = cut_columns(columns, disk, -2.0, 20.0, FUZZY)
-        assert removed == pytest.approx(math.pi * r * r * 2.0, rel=1e-9)
-        assert len(columns) == (k + 2 if k + 1 <= MERGE_COLUMNS else 2)
-    holes = (MERGE_COLUMNS + 1) * math.pi * r * r
+        assert removed == pytest.approx(disk_area * 2.0, rel=1e-9)
+        tiers = sorted(col.tier for col in columns if col.z_hi == -2.0)
+        done = k + 1
+        assert tiers == sorted([0] * (done % n) + [1] * (done // n % n) + [2] * (done // (n * n)))
+    holes = n * n * disk_area
     _assert_columns(columns, [(-10.0, -2.0, holes), (-10.0, 0.0, 1200.0 - holes)])
+    assert columns_volume(columns) == pytest.approx(BLOCK.volume - 2.0 * holes, rel=1e-12)
 
 
 def test_a_cut_must_reach_above_the_columns():
