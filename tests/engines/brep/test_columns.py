@@ -9,6 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.brep import columns as columns_mod
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.columns import MERGE_COLUMNS, cut_columns, solid_columns, columns_solid, columns_volume
 from fusioncut.engines.brep.occ import MERGE_TOLERANCE, max_tolerance, volume
@@ -66,10 +67,16 @@ def test_a_plunge_and_a_slot_take_the_closed_form_volumes():
     assert nothing == 0.0 and cuts == [] and again == columns
 
 
-def test_columns_of_one_height_are_merged_in_tiers():
+@pytest.mark.parametrize("fuse_fails", [False, True])
+def test_columns_of_one_height_are_merged_in_tiers(fuse_fails, monkeypatch):
     """A grid of plunges at one depth: each leaves a disk column (tier 0); past MERGE_COLUMNS of
     them they become one column of tier 1, past MERGE_COLUMNS of those one of tier 2. Volume and
-    areas are kept through every merge."""
+    areas are kept through every merge, also when the kernel's fuse fails (the pieces are then
+    kept side by side in one compound)."""
+    if fuse_fails:
+        def broken(*args, **kwargs):
+            raise RuntimeError("simulated fuse failure")
+        monkeypatch.setattr(columns_mod, "fuse_all", broken)
     columns = box_columns()
     r, n = 0.5, MERGE_COLUMNS + 1
     disk_area = math.pi * r * r
