@@ -26,7 +26,7 @@ class EngineOptions:
     where the shapes of a failed Boolean are saved as .brep. ``merge_growth``: merge same-surface
     faces of a workpiece cell when its face count grew by this fraction since the last merge.
 
-    ``cell_size``: the workpiece is kept in square cells of this size (mm), 20 by default, so that
+    ``cell_size``: the workpiece is kept as square columns of this size (mm), 20 by default, so that
     each Boolean touches a bounded piece; ``None`` keeps it whole. Cells give the whole workpiece's
     results on lines, arcs, trochoids and helical entries (tested to 0.001° and 1e-6, and a helical
     entry centred on a cell corner conserves volume to 1e-9). On the quick Titan-like benchmark 20 mm
@@ -47,9 +47,9 @@ class EngineOptions:
     provably misses skips its Booleans; ``None`` runs every Boolean. Used with exact sweeps only; it
     changes no result, only the time.
 
-    ``columns``: keep cells that only cylindrical tools (flat end mills with the flute's diameter up
-    the shank) have cut horizontally or vertically as 2.5D columns, cut by 2D Booleans
-    (:mod:`fusioncut.engines.brep.columns`); the first other cut turns a cell into a solid for good.
+    ``layers``: keep cells that only cylindrical tools (flat end mills with the flute's diameter up
+    the shank) have cut horizontally or vertically as stacks of 2.5D layers, cut by 2D Booleans
+    (:mod:`fusioncut.engines.brep.layers`); the first other cut turns a cell into a solid for good.
     Same material, same contact faces, fewer and cheaper kernel operations. Exact sweeps only.
     """
 
@@ -65,7 +65,7 @@ class EngineOptions:
     cell_size: float | None = 20.0
     kernel_threads: bool = True
     ceiling_pixel: float | None = 0.1
-    columns: bool = True
+    layers: bool = True
 
 
 class EngagementEngine(Protocol):

@@ -17,13 +17,12 @@ joined again when the slices are merged. Faces of a cell on the same surface are
 its face count grew by ``merge_growth`` since its last merge (without merging the IPW fragments and
 every Boolean slows down).
 
-A cell that only cylindrical tools have cut horizontally or vertically is kept as 2.5D columns
-(``EngineOptions.columns``, :mod:`fusioncut.engines.brep.columns`): planar regions, each extruded
-from the cell's bottom up to its own height. The CL's sweep is then a planar region taken away from
-the columns it reaches above the tip by 2D Booleans, and the contact faces are the engaged arcs
-extruded over the heights cut, sliced like any other. A cut the columns cannot take (another tool,
-a ramp's oblique sweep) turns the cells it reaches into solids; a solid cell whose faces are all
-horizontal or vertical again takes the column form back at its next merge.
+A cell that only cylindrical tools have cut horizontally or vertically is kept as a stack of 2.5D
+layers (``EngineOptions.layers``, :mod:`fusioncut.engines.brep.layers`): the CL's sweep is then a
+planar region taken away from the layers above the tip by 2D Booleans, and the contact faces are
+the engaged arcs of each layer extruded over its height, sliced like any other. A cut the layers
+cannot take (another tool, a ramp's oblique sweep, too many layers) turns the cell into a solid; a
+solid cell whose faces are all horizontal or vertical again takes the layers back at its next merge.
 Both forms give the same material and the same engagement (tested against an all-solid run).
 
 A failed Boolean is retried with fuzzy values; if it still fails the CL is reported FAILED with the
@@ -47,9 +46,9 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
 from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
-from fusioncut.engines.brep.columns import (
-    CuttingRegion, Column, RegionCutFailure, contact_patches, cut_columns, make_column, solid_columns, columns_box, columns_solid,
-    columns_volume,
+from fusioncut.engines.brep.layers import (
+    CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, make_layer, solid_layers, stack_box, stack_solid,
+    stack_volume,
 )
 from fusioncut.engines.brep.occ import (
     boolean, bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections,
@@ -69,8 +68,10 @@ from fusioncut.model.tools import MillingTool, SpindleDirection
 log = logging.getLogger("fusioncut.engine")
 
 
-# a solid cell is taken back as columns only when it has at most this many heights of up faces
-MAX_HEIGHTS = 64
+# a cut through a stack costs a 2D Boolean (~1.5 ms) per layer it takes material from, so a cell
+# with more layers than this (the ledges a helical entry's steps leave on its bore) goes on as a
+# solid: on the quick benchmark's CLs 997-1800, 6 took 19.6 s, 30 took 23.0 s (all solid: 22.4 s)
+MAX_LAYERS = 6
 
 
 class BooleanFailure(Exception):
@@ -79,10 +80,10 @@ class BooleanFailure(Exception):
 
 @dataclass
 class Cell:
-    """One cell of the IPW: its material and bounding box (mm).
+    """One column of the IPW: its material and bounding box (mm).
 
     The material is either a B-Rep ``solid`` or, while only cylindrical tools have cut it
-    horizontally or vertically, 2.5D ``columns`` (:mod:`fusioncut.engines.brep.columns`);
+    horizontally or vertically, a stack of 2.5D ``layers`` (:mod:`fusioncut.engines.brep.layers`);
     then the solid is built only when asked for (``shape``) and kept until the next cut.
     """
 
@@ -90,46 +91,46 @@ class Cell:
     box: tuple[tuple[float, float, float], tuple[float, float, float]] | None
     faces_at_merge: int = 0
     volume: float = 0.0
-    columns: tuple[Column, ...] | None = None
+    layers: tuple[Layer, ...] | None = None
 
     @property
     def empty(self) -> bool:
-        return self.solid is None and not self.columns
+        return self.solid is None and not self.layers
 
     @property
     def shape(self) -> TopoDS_Shape | None:
-        if self.solid is None and self.columns:
-            self.solid = columns_solid(self.columns)
+        if self.solid is None and self.layers:
+            self.solid = stack_solid(self.layers)
         return self.solid
 
     def set(self, shape: TopoDS_Shape | None, shape_volume: float | None = None) -> None:
         """The material as a solid from now on."""
         if shape is not None and not solids(shape):
             shape = None
-        self.columns = None
+        self.layers = None
         self.solid = shape
         self.box = bounding_box(shape) if shape is not None else None
         self.volume = 0.0 if shape is None else volume(shape) if shape_volume is None else shape_volume
 
-    def set_columns(self, columns: tuple[Column, ...]) -> None:
-        self.columns = columns or None
+    def set_layers(self, layers: tuple[Layer, ...]) -> None:
+        self.layers = layers or None
         self.solid = None
-        self.box = columns_box(columns) if columns else None
-        self.volume = columns_volume(columns) if columns else 0.0
+        self.box = stack_box(layers) if layers else None
+        self.volume = stack_volume(layers) if layers else 0.0
 
-    def to_columns(self) -> None:
-        """Take the column form when the solid is 2.5D (a box stock's cell, or one only flat end
-        mills have cut) with up faces at at most ``MAX_HEIGHTS`` heights."""
-        if self.columns is None and self.solid is not None:
-            columns = solid_columns(self.solid, MAX_HEIGHTS)
-            if columns is not None:
+    def to_layers(self) -> None:
+        """Take the layered form when the solid is 2.5D (a box stock's cell, or one only flat end
+        mills have cut) in at most ``MAX_LAYERS`` layers."""
+        if self.layers is None and self.solid is not None:
+            layers = solid_layers(self.solid, MAX_LAYERS)
+            if layers is not None:
                 solid = self.solid
-                self.set_columns(columns)
+                self.set_layers(layers)
                 self.solid = solid  # the same material: keep the solid already built
 
     def to_solid(self) -> None:
-        """Leave the column form (a cut the columns cannot take is coming)."""
-        if self.columns is not None:
+        """Leave the layered form (a cut the layers cannot take is coming)."""
+        if self.layers is not None:
             self.set(self.shape, self.volume)
 
 
@@ -156,13 +157,13 @@ class BRepEngine:
             cell = Cell(None, None, count_faces(piece))
             cell.set(piece)
             self.cells.append(cell)
-        self.adopt_columns()
+        self.adopt_layers()
 
-    def adopt_columns(self) -> None:
-        """Cells that are 2.5D take the column form (when ``options.columns``)."""
-        if self.options.columns and self.options.sweep == "exact":
+    def adopt_layers(self) -> None:
+        """Cells that are 2.5D take the layered form (when ``options.layers``)."""
+        if self.options.layers and self.options.sweep == "exact":
             for cell in self.cells:
-                cell.to_columns()
+                cell.to_layers()
 
     @property
     def ipw(self) -> TopoDS_Shape:
@@ -197,15 +198,15 @@ class BRepEngine:
         folder.mkdir(parents=True, exist_ok=True)
         name = f"ipw-{next_cl:07d}.bbrep"
         # one compound child per cell, in cell order: an empty compound for a cell cut away, the
-        # solid, or a 2.5D cell's column regions (their heights go in the state): kept as columns, not
+        # solid, or a layered cell's regions (their heights go in the state): kept as layers, not
         # as their solid, so that the resumed run cuts the very same regions
-        write_binary_brep(compound(compound([]) if c.empty else compound(col.region for col in c.columns) if c.columns
+        write_binary_brep(compound(compound([]) if c.empty else compound(la.region for la in c.layers) if c.layers
                                    else c.shape for c in self.cells),
                           str(folder / (name + ".tmp")))
         os.replace(folder / (name + ".tmp"), folder / name)
         state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
                  "removed_total": self.removed_total, "faces_at_merge": [c.faces_at_merge for c in self.cells],
-                 "columns": [[(col.z_lo, col.z_hi, col.tier) for col in c.columns] if c.columns else None for c in self.cells]}
+                 "layers": [[(la.z_lo, la.z_hi) for la in c.layers] if c.layers else None for c in self.cells]}
         (folder / "state.json.tmp").write_text(json.dumps(state))
         os.replace(folder / "state.json.tmp", folder / "state.json")
         for old in folder.glob("ipw-*.bbrep"):
@@ -219,16 +220,14 @@ class BRepEngine:
             ipw = read_binary_brep(str(folder / state["ipw"]))
         except (OSError, ValueError, KeyError):
             return None
-        if ipw.IsNull() or "layers" in state:
-            # (a checkpoint of the stacked layers FusionCut kept before its columns: its regions
-            # mean other material, so the job starts over rather than resume from it)
+        if ipw.IsNull():
             return None
         self.cells = []
-        heights = state.get("columns") or [None] * len(state["faces_at_merge"])
+        heights = state.get("layers") or [None] * len(state["faces_at_merge"])
         for child, merged, zs in zip(children(ipw), state["faces_at_merge"], heights):
             cell = Cell(None, None, merged)
             if zs:
-                cell.set_columns(tuple(make_column(z0, z1, region, tier) for region, (z0, z1, tier) in zip(children(child), zs)))
+                cell.set_layers(tuple(make_layer(z0, z1, region) for region, (z0, z1) in zip(children(child), zs)))
             else:
                 cell.set(child)
             self.cells.append(cell)
@@ -294,10 +293,11 @@ class BRepEngine:
             if ceiling is not None:
                 ceiling.clear(fp)  # the exact sweep holds no material, so nothing is left in it either
             return CutOutcome(idle, timings=timings), []  # no sweep built: no method to report
-        region = self._cutting_region(motion, tool) if any(c.columns for c in candidates) else None
-        flat, solid = [], []  # the cells cut as columns, and those cut as solids
+        region = self._cutting_region(motion, tool) if any(c.layers for c in candidates) else None
+        flat, solid = [], []  # the cells cut as layers, and those cut as solids
         for c in candidates:
-            if c.columns is not None and region is not None and max(col.z_hi for col in c.columns) <= region.z_top:
+            if (c.layers is not None and region is not None and len(c.layers) <= MAX_LAYERS
+                    and c.layers[-1].z_hi <= region.z_top):
                 flat.append(c)
             else:
                 solid.append(c)
@@ -335,31 +335,31 @@ class BRepEngine:
                               reason=f"Boolean failed after retries: {exc}; shapes saved to {saved}"), []
         try:
             fuzzies = (self.options.fuzzy or 0.0, *self.options.fuzzy_retries)
-            flat_cuts = [(c, *cut_columns(c.columns, region.face, region.z_tip, region.z_top, fuzzies)) for c in flat]
+            layered = [(c, *cut_stack(c.layers, region.face, region.z_tip, region.z_top, fuzzies)) for c in flat]
         except RegionCutFailure as exc:
-            log.error("CL %d (%s): Boolean of the columns failed: %s", index, move.source, exc)
+            log.error("CL %d (%s): layered Boolean failed: %s", index, move.source, exc)
             return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
-                              reason=f"Boolean of the columns failed after retries: {exc}"), []
+                              reason=f"Boolean of the layers failed after retries: {exc}"), []
         t2 = time.perf_counter()
         timings["boolean"] = (t2 - t1) * 1e3
         if fp is not None and ceiling is not None:  # the cells are cut (below) or lose nothing: the sweep is gone
             ceiling.clear(fp)
         results = [r for r in results if r[2] is not None]
-        flat_cuts = [r for r in flat_cuts if r[3]]
-        if not results and not flat_cuts:  # nothing removed: the tool only touches or misses the material
+        layered = [r for r in layered if r[3]]
+        if not results and not layered:  # nothing removed: the tool only touches or misses the material
             return CutOutcome(idle, method=method, timings=timings), []
-        removed = sum(r[1] for r in results) + sum(r[2] for r in flat_cuts)
+        removed = sum(r[1] for r in results) + sum(r[2] for r in layered)
         for cell, cut_volume, new_shape, _ in results:
             cell.set(new_shape, cell.volume - cut_volume)
-        for cell, columns, *_ in flat_cuts:
-            cell.set_columns(columns)
+        for cell, layers, *_ in layered:
+            cell.set_layers(layers)
         self.removed_total += removed
         outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
                              method=method, timings=timings)
         contacts = []
         try:
-            candidates = [p for _, after, _, cuts in flat_cuts
-                          for p in contact_patches(cuts, after, move.end[:2], region.radius)]
+            candidates = [p for _, _, _, cuts in layered
+                          for p in contact_patches(cuts, region.face, move.end[:2], region.radius)]
             if results:
                 sweep_faces = list(faces(sweep.shape))
                 own = face_map(sweep.shape)
@@ -442,7 +442,7 @@ class BRepEngine:
 
     @staticmethod
     def _cutting_region(motion: Move, tool: MillingTool) -> CuttingRegion | None:
-        """What the columns take from this cut, when they can: a tool that is one cylinder, on a
+        """What the layers take from this cut, when they can: a tool that is one cylinder, on a
         horizontal line, an XY arc of up to half a turn or a vertical move; None otherwise."""
         cyl = cylinder_tool(tool)
         z_tip, z_end = sorted((motion.start[2], motion.end[2]))
@@ -452,7 +452,7 @@ class BRepEngine:
         return None if face is None else CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1])
 
     def _maybe_merge(self, cell: Cell) -> None:
-        if cell.empty or cell.columns is not None:
+        if cell.empty or cell.layers is not None:
             return
         n = count_faces(cell.shape)
         if n > (1 + self.options.merge_growth) * cell.faces_at_merge:
@@ -461,8 +461,8 @@ class BRepEngine:
             except Exception as exc:  # noqa: BLE001 - merging is an optimisation: keep the cell as it is
                 log.debug("face merge skipped: %s", exc)
             cell.faces_at_merge = count_faces(cell.shape) if cell.shape is not None else 0
-            if self.options.columns and self.options.sweep == "exact":
-                cell.to_columns()  # back to columns once a helical entry's floor steps are gone
+            if self.options.layers and self.options.sweep == "exact":
+                cell.to_layers()  # back to layers once a helical entry's floor steps are gone
 
     def _save_failure(self, index: int, sweep: TopoDS_Shape) -> str:
         folder = self.options.failure_dir or Path("fusioncut-failures")

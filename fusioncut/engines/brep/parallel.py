@@ -96,7 +96,7 @@ class PartitionWorker:
         # one worker per core: the kernel's own threads would only compete with the other workers
         self.engine = BRepEngine(replace(options, kernel_threads=False))
         self.engine.cells = unpack_cells(cells, faces_at_merge)
-        self.engine.adopt_columns()
+        self.engine.adopt_layers()
         # the whole stock's: the engine's "nothing removed" threshold is relative to it
         self.engine.stock_volume = stock_volume
         self.sequence = list(cl_sequence(toolpath, options, default_tool))

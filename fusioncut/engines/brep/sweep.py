@@ -206,7 +206,7 @@ def cylinder_region(r: float, move: Move) -> TopoDS_Face | None:
     """The planar region (at the lower end's height) a disk of radius ``r`` covers along a
     horizontal line, an XY arc of at most half a turn or a vertical move; None for other moves and
     for arcs whose caps would overlap. A cylinder's sweep is this region's prism; the layered
-    workpiece (:mod:`fusioncut.engines.brep.columns`) cuts with the region itself.
+    workpiece (:mod:`fusioncut.engines.brep.layers`) cuts with the region itself.
     """
     p0, p1 = move.start, move.end
     if isinstance(move, ArcMove):

@@ -51,9 +51,9 @@ def conserved(engine):
 
 @pytest.fixture(scope="module")
 def whole():
-    """The reference: one solid, and every Boolean run in 3D (no height bounds, no columns)."""
+    """The reference: one solid, and every Boolean run in 3D (no height bounds, no layers)."""
     engine = BRepEngine(EngineOptions(max_segment_length=3.0, cell_size=None, fuzzy=1e-6, ceiling_pixel=None,
-                                      columns=False))
+                                      layers=False))
     maps = list(engine.run(program(), STOCK))
     assert sum(m.status == CLStatus.ENGAGED for m in maps) > 20
     return maps
@@ -88,8 +88,8 @@ def test_cells_equal_the_whole_workpiece_on_a_helical_entry():
     from test_helical_entry import STOCK as BLOCK, helical_entry
 
     runs = {}
-    for cell_size, columns in ((None, False), (10.0, True)):
-        engine = BRepEngine(EngineOptions(ramp_step=0.05, cell_size=cell_size, fuzzy=1e-6, columns=columns))
+    for cell_size, layers in ((None, False), (10.0, True)):
+        engine = BRepEngine(EngineOptions(ramp_step=0.05, cell_size=cell_size, fuzzy=1e-6, layers=layers))
         runs[cell_size] = list(engine.run(helical_entry(), BLOCK))
         conserved(engine)
     assert_same(runs[10.0], runs[None])

@@ -42,10 +42,10 @@ def test_no_checkpoint_gives_none(tmp_path):
 
 
 def test_resumed_mixed_layered_and_solid_cells_equal_uninterrupted(tmp_path):
-    """A flat slot keeps its cell in columns; a ball pass turns it into a solid; the ball then runs on
-    the stock's top over the other, still 2.5D cell, touching without cutting. Resumed after every
+    """A flat slot keeps its cell layered; a ball pass turns it into a solid; the ball then runs on
+    the stock's top over the other, still layered cell, touching without cutting. Resumed after every
     CL, the cells come back in either form and every result (sweep method included) must match: the
-    material's height bounds start from the cells' boxes, so a 2.5D cell's box must be the one
+    material's height bounds start from the cells' boxes, so a layered cell's box must be the one
     its solid would have."""
     ball = BallEndMill(6.0, 15.0, number=2)
     moves = (LinearMove((-5.0, 8.0, -2.0), (15.0, 8.0, -2.0), feed=600.0, tool=1),
@@ -63,6 +63,6 @@ def test_resumed_mixed_layered_and_solid_cells_equal_uninterrupted(tmp_path):
         first.save_checkpoint(tmp_path / str(k), next_cl=k)
         second = BRepEngine(options)
         assert second.load_checkpoint(tmp_path / str(k)) == k
-        forms.add(tuple(c.columns is not None for c in second.cells))
+        forms.add(tuple(c.layers is not None for c in second.cells))
         assert _strip(done + list(second.process(tp, start_at=k))) == _strip(whole), k
-    assert (False, True) in forms  # resumed with one cell solid and the other in columns
+    assert (False, True) in forms  # resumed with one cell solid and the other layered

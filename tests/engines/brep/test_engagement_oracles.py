@@ -147,9 +147,9 @@ def test_slot_deeper_than_the_flutes_splits_contact_into_flute_and_shank():
     assert any("shank" in w for w in last.warnings)
 
 
-@pytest.mark.parametrize("columns", [True, False])
+@pytest.mark.parametrize("layers", [True, False])
 @pytest.mark.parametrize("cell_size", [None, 20.0])
-def test_a_wall_only_grazed_is_no_engagement(cell_size, columns):
+def test_a_wall_only_grazed_is_no_engagement(cell_size, layers):
     """A slot cut 3 mm deep, then again 3 mm deeper along the same line.
 
     At the second pass's end the tool's front half lies exactly on the end wall the first pass left
@@ -159,7 +159,7 @@ def test_a_wall_only_grazed_is_no_engagement(cell_size, columns):
     stock = BoxStock((-60, -30, -20), (60, 30, 0))
     moves = [feed((-80, 0, -3), (0, 0, -3)), LinearMove((0, 0, -3), (-80, 0, -6), rapid=True, tool=1),
              feed((-80, 0, -6), (0, 0, -6))]
-    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0, cell_size=cell_size, columns=columns)
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0, cell_size=cell_size, layers=layers)
     last = maps[-1]
     assert last.status == CLStatus.ENGAGED
     assert last.ap == pytest.approx(3.0, abs=1e-9)

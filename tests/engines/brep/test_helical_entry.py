@@ -36,11 +36,11 @@ def helical_entry() -> Toolpath:
     return Toolpath(tuple(moves), {1: FlatEndMill(2 * R, 20.0, number=1)})
 
 
-@pytest.mark.parametrize("columns", [True, False])
+@pytest.mark.parametrize("layers", [True, False])
 @pytest.mark.parametrize("cell_size", [None, 20.0])
-def test_helical_entry_removes_the_closed_form_pocket(cell_size, columns):
+def test_helical_entry_removes_the_closed_form_pocket(cell_size, layers):
     # with 20 mm cells the helix is centred on the corner of four cells and crosses their walls
-    engine = BRepEngine(EngineOptions(ramp_step=0.05, cell_size=cell_size, columns=columns))
+    engine = BRepEngine(EngineOptions(ramp_step=0.05, cell_size=cell_size, layers=layers))
     maps = list(engine.run(helical_entry(), STOCK))
     assert [m.status for m in maps if m.status == CLStatus.FAILED] == []
     removed = sum(m.removed_volume for m in maps)

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep import engine as engine_mod
-from fusioncut.engines.brep import columns as columns_mod
+from fusioncut.engines.brep import layers as layers_mod
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.occ import bounding_box
 from fusioncut.engines.brep.sweep import swept_volume
@@ -78,7 +78,7 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
         return real(self, ipw, sweep, ipw_volume)
 
     monkeypatch.setattr(BRepEngine, "_subtract", flaky)
-    eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0, columns=False))
+    eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0, layers=False))
     maps = list(eng.run(program(10, 2), STOCK))
     failed = [m for m in maps if m.status == CLStatus.FAILED]
     assert len(failed) == 1
@@ -90,17 +90,17 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
     assert STOCK.volume - eng.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-6)
 
 
-def test_a_failed_boolean_of_the_columns_marks_the_cl_and_goes_on(monkeypatch):
+def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch):
     calls = {"n": 0}
-    real = columns_mod._cut_region
+    real = layers_mod._cut_region
 
     def flaky(*args):
         calls["n"] += 1
         if calls["n"] == 2:
-            raise columns_mod.RegionCutFailure("simulated 2D kernel failure")
+            raise layers_mod.RegionCutFailure("simulated 2D kernel failure")
         return real(*args)
 
-    monkeypatch.setattr(columns_mod, "_cut_region", flaky)
+    monkeypatch.setattr(layers_mod, "_cut_region", flaky)
     eng = BRepEngine(EngineOptions(max_segment_length=6.0))
     maps = list(eng.run(program(10, 2), STOCK))
     failed = [m for m in maps if m.status == CLStatus.FAILED]
