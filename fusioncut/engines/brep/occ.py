@@ -269,12 +269,13 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
         change = _enclosed_volume([*faces(merged), *(f.Reversed() for f in faces(shape))])
         reference = abs(shape_volume if shape_volume is not None else volume(shape))
         sound = abs(change) <= 1e-9 * reference + 1e-6
-        loose = [e for e in edges(merged) if BRep_Tool.Tolerance_s(TopoDS.Edge(e)) > tolerance_limit]
+        loose = _loose_edges(merged, tolerance_limit)
         if sound and not loose and BRepCheck_Analyzer(merged).IsValid():
             return merged
         # the faces that reach the hole's rim (the one that went missing and its neighbours) or a
-        # loose edge, by bounding boxes: the merge history is slow to query from Python, ~0.2 ms per edge
-        rim = [bounding_box(e, exact=True) for e in (*_free_edges(merged), *loose)]
+        # loose edge (its exact box: its tolerance would take in faces millimetres away), by
+        # bounding boxes: the merge history is slow to query from Python, ~0.2 ms per edge
+        rim = [bounding_box(e) for e in _free_edges(merged)] + [bounding_box(e, exact=True) for e in loose]
         culprits = [f for f in faces(shape) if not kept.Contains(f)
                     and any(boxes_overlap(bounding_box(f), b, 1e-6) for b in rim)]
         log.debug("face merge %d -> %d faces unsound (volume ok: %s, loose edges: %d); keeping %d faces",
@@ -289,6 +290,16 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
 def max_tolerance(shape: TopoDS_Shape) -> float:
     """The largest tolerance (mm) of the vertices, edges and faces of ``shape``."""
     return ShapeAnalysis_ShapeTolerance().Tolerance(shape, 1)
+
+
+def _loose_edges(shape: TopoDS_Shape, limit: float) -> list[TopoDS_Edge]:
+    """The edges of ``shape`` with a tolerance, or a vertex tolerance, above ``limit`` (mm)."""
+    out = []
+    for e in edges(shape):
+        if max(BRep_Tool.Tolerance_s(e), BRep_Tool.Tolerance_s(TopExp.FirstVertex_s(e)),
+               BRep_Tool.Tolerance_s(TopExp.LastVertex_s(e))) > limit:
+            out.append(e)
+    return out
 
 
 def _free_edges(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
