@@ -228,7 +228,7 @@ def fuse_all(shapes: list[TopoDS_Shape], glue: bool = False, fuzzy: float = 0.0)
     return unify(op.Shape())
 
 
-MERGE_TOLERANCE = 1e-4  # mm: a merged edge looser than this (and 10x the shape's loosest) is a failed merge
+MERGE_TOLERANCE = 1e-4  # mm: a merged edge or vertex looser than this (and 10x the shape's loosest) fails the merge
 
 
 def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: int = 4) -> TopoDS_Shape:
@@ -245,7 +245,7 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
     unchanged. (Refusing the whole merge instead let that benchmark's workpiece grow from 310 to
     4,382 faces within 120 CLs, and the Boolean median rose from 55–85 ms to 254 ms.)
 
-    A merge is also refused where it leaves an edge looser than ``MERGE_TOLERANCE`` (and ten times
+    A merge is also refused where it leaves an edge or vertex looser than ``MERGE_TOLERANCE`` (and ten times
     the loosest of ``shape``): after a plunge and an arc of the tool's own radius, the merged
     workpiece was valid and of the right volume but had an 8 mm tolerance edge, and every later
     Boolean near it came back empty (a 40.8 mm³ cut reported as air). The faces near such an edge
