@@ -409,8 +409,8 @@ class BRepEngine:
         last = "unknown"
         sweep_volume = None  # only needed once something is removed
         first = self.options.fuzzy if self.options.fuzzy is not None else (1e-6 if self.options.cell_size else 0.0)
+        threads = self.options.kernel_threads
         for fuzzy in (first, *self.options.fuzzy_retries):
-            threads = self.options.kernel_threads
             pf = intersections(ipw, sweep, fuzzy, threads)
             if pf is None:
                 last = f"intersection reported errors (fuzzy={fuzzy})"

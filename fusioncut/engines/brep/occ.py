@@ -228,7 +228,8 @@ def fuse_all(shapes: list[TopoDS_Shape], glue: bool = False, fuzzy: float = 0.0)
     return unify(op.Shape())
 
 
-MERGE_TOLERANCE = 1e-4  # mm: a merged edge or vertex looser than this (and 10x the shape's loosest) fails the merge
+# mm: a merged edge or vertex looser than this (and than 10x the shape's loosest) fails the merge
+MERGE_TOLERANCE = 1e-4
 
 
 def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: int = 4) -> TopoDS_Shape:
@@ -245,11 +246,11 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
     unchanged. (Refusing the whole merge instead let that benchmark's workpiece grow from 310 to
     4,382 faces within 120 CLs, and the Boolean median rose from 55–85 ms to 254 ms.)
 
-    A merge is also refused where it leaves an edge or vertex looser than ``MERGE_TOLERANCE`` (and ten times
-    the loosest of ``shape``): after a plunge and an arc of the tool's own radius, the merged
-    workpiece was valid and of the right volume but had an 8 mm tolerance edge, and every later
-    Boolean near it came back empty (a 40.8 mm³ cut reported as air). The faces near such an edge
-    are kept like a hole's.
+    A merge is also refused where it leaves an edge or vertex looser than ``MERGE_TOLERANCE`` (and
+    ten times the loosest of ``shape``): after a plunge and an arc of the tool's own radius, the
+    merged workpiece was valid and of the right volume but had an 8 mm tolerance edge, and every
+    later Boolean near it came back empty (a 40.8 mm³ cut reported as air). The faces near such an
+    edge are kept like a hole's.
     """
     n_faces = count_faces(shape)
     tolerance_limit = max(MERGE_TOLERANCE, 10.0 * max_tolerance(shape))
@@ -269,7 +270,8 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
         change = _enclosed_volume([*faces(merged), *(f.Reversed() for f in faces(shape))])
         reference = abs(shape_volume if shape_volume is not None else volume(shape))
         sound = abs(change) <= 1e-9 * reference + 1e-6
-        loose = _loose_edges(merged, tolerance_limit)
+        # the whole shape's largest tolerance is one C++ pass; the edges are listed only past the limit
+        loose = _loose_edges(merged, tolerance_limit) if max_tolerance(merged) > tolerance_limit else []
         if sound and not loose and BRepCheck_Analyzer(merged).IsValid():
             return merged
         # the faces that reach the hole's rim (the one that went missing and its neighbours) or a
