@@ -146,12 +146,16 @@ class BRepEngine:
     # checkpoint, a parallel worker's cells) gets fresh bounds, since old ones may claim too much air
     _ceiling: MaterialCeiling | None = field(default=None, init=False, repr=False)
     _ceiling_cells: list[Cell] | None = field(default=None, init=False, repr=False)
+    # the disk the last CL's cylindrical tool left without material, as (x, y, z_lo, z_hi, radius)
+    # mm, or None: a cut starting there may leave that disk out of its region (see _cutting_region)
+    cleared: tuple[float, float, float, float, float] | None = field(default=None, init=False)
 
     # -- public -------------------------------------------------------------------------------
     def start(self, stock: Stock | TopoDS_Shape) -> None:
         solid = stock if isinstance(stock, TopoDS_Shape) else stock_solid(stock)
         self.stock_volume = volume(solid)
         self.removed_total = 0.0
+        self.cleared = None
         self.cells = []
         for piece in split_into_cells(solid, self.options.cell_size):
             cell = Cell(None, None, count_faces(piece))
@@ -206,7 +210,8 @@ class BRepEngine:
         os.replace(folder / (name + ".tmp"), folder / name)
         state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
                  "removed_total": self.removed_total, "faces_at_merge": [c.faces_at_merge for c in self.cells],
-                 "layers": [[(la.z_lo, la.z_hi) for la in c.layers] if c.layers else None for c in self.cells]}
+                 "layers": [[(la.z_lo, la.z_hi) for la in c.layers] if c.layers else None for c in self.cells],
+                 "cleared": self.cleared}
         (folder / "state.json.tmp").write_text(json.dumps(state))
         os.replace(folder / "state.json.tmp", folder / "state.json")
         for old in folder.glob("ipw-*.bbrep"):
@@ -233,6 +238,7 @@ class BRepEngine:
             self.cells.append(cell)
         self.stock_volume = state["stock_volume"]
         self.removed_total = state["removed_total"]
+        self.cleared = tuple(state["cleared"]) if state.get("cleared") else None
         return int(state["next_cl"])
 
     def step(self, index: int, move: Move, tool: MillingTool, feed_angle: float) -> EngagementMap:
@@ -269,6 +275,17 @@ class BRepEngine:
 
         Returns the picklable outcome and the contact faces (kernel objects, they stay here).
         """
+        cleared, self.cleared = self.cleared, None  # a CL that raises or fails leaves nothing proven
+        outcome, contacts = self._cut(index, move, tool, feed_angle, cleared)
+        cyl = cylinder_tool(tool)
+        if outcome.status != CLStatus.FAILED and cyl is not None and self.options.sweep == "exact":
+            # the exact sweep holds the tool at the motion's end: every cell lost what lay in it
+            end = step_motion(move).end
+            self.cleared = (end[0], end[1], end[2], end[2] + cyl[1], cyl[0])
+        return outcome, contacts
+
+    def _cut(self, index: int, move: Move, tool: MillingTool, feed_angle: float,
+             cleared: tuple[float, float, float, float, float] | None) -> tuple[CutOutcome, list]:
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
         seam = math.radians(feed_angle) + math.pi  # seams behind the tool, away from the engaged side
@@ -293,7 +310,7 @@ class BRepEngine:
             if ceiling is not None:
                 ceiling.clear(fp)  # the exact sweep holds no material, so nothing is left in it either
             return CutOutcome(idle, timings=timings), []  # no sweep built: no method to report
-        region = self._cutting_region(motion, tool) if any(c.layers for c in candidates) else None
+        region = self._cutting_region(motion, tool, cleared) if any(c.layers for c in candidates) else None
         flat, solid = [], []  # the cells cut as layers, and those cut as solids
         for c in candidates:
             if (c.layers is not None and region is not None and len(c.layers) <= MAX_LAYERS
@@ -441,14 +458,22 @@ class BRepEngine:
         raise BooleanFailure(last)
 
     @staticmethod
-    def _cutting_region(motion: Move, tool: MillingTool) -> CuttingRegion | None:
+    def _cutting_region(motion: Move, tool: MillingTool,
+                        cleared: tuple[float, float, float, float, float] | None = None) -> CuttingRegion | None:
         """What the layers take from this cut, when they can: a tool that is one cylinder, on a
-        horizontal line, an XY arc of up to half a turn or a vertical move; None otherwise."""
+        horizontal line, an XY arc of up to half a turn or a vertical move; None otherwise.
+
+        When ``cleared`` (the disk the previous CL left empty, see ``BRepEngine.cleared``) holds the
+        tool at the start over the whole cut's height, the region leaves most of that disk out
+        (:func:`~fusioncut.engines.brep.sweep.cylinder_region`'s ``open_start``): same material.
+        """
         cyl = cylinder_tool(tool)
         z_tip, z_end = sorted((motion.start[2], motion.end[2]))
         if cyl is None or (z_end - z_tip > 1e-9 and math.dist(motion.start[:2], motion.end[:2]) > 1e-9):
             return None
-        face = cylinder_region(cyl[0], motion.translated((0.0, 0.0, -z_tip)))  # the region at z = 0
+        open_start = (cleared is not None and (cleared[0], cleared[1]) == motion.start[:2]
+                      and cleared[2] <= z_tip and z_end + cyl[1] <= cleared[3] and cyl[0] <= cleared[4])
+        face = cylinder_region(cyl[0], motion.translated((0.0, 0.0, -z_tip)), open_start)  # the region at z = 0
         return None if face is None else CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1])
 
     def _maybe_merge(self, cell: Cell) -> None:

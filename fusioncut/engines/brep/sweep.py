@@ -202,19 +202,25 @@ def _add(p: Vec3, v: Vec3, k: float = 1.0) -> Vec3:
     return (p[0] + k * v[0], p[1] + k * v[1], p[2] + k * v[2])
 
 
-def cylinder_region(r: float, move: Move) -> TopoDS_Face | None:
+def cylinder_region(r: float, move: Move, open_start: bool = False) -> TopoDS_Face | None:
     """The planar region (at the lower end's height) a disk of radius ``r`` covers along a
     horizontal line, an XY arc of at most half a turn or a vertical move; None for other moves and
     for arcs whose caps would overlap. A cylinder's sweep is this region's prism; the layered
     workpiece (:mod:`fusioncut.engines.brep.layers`) cuts with the region itself.
+
+    ``open_start``: the disk at the start is known to hold no material (the previous CL's tool
+    stood there), so the region behind the start's diameter across the path is left out: the cut
+    is the same, and the region's back is one straight edge instead of a half circle that lies on
+    the previous cut's front arc, touching its side edges tangentially. Such tangent pairs cost the
+    kernel's intersection ~2 ms each (measured on the benchmark's trochoids: 2D Booleans 20% faster).
     """
     p0, p1 = move.start, move.end
     if isinstance(move, ArcMove):
         if move.plane != ArcPlane.XY or move.is_helix:
             return None
-        pieces = _cylinder_arc_region(r, move)
+        pieces = _cylinder_arc_region(r, move, open_start)
     elif abs(p1[2] - p0[2]) < _EPS and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) >= _EPS:
-        pieces = _cylinder_line_region(r, p0, p1)
+        pieces = _cylinder_line_region(r, p0, p1, open_start)
     elif math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _EPS:
         return _disk((p1[0], p1[1], min(p0[2], p1[2])), Z, r)
     else:
@@ -226,11 +232,12 @@ def _region_prism(pieces, height: float) -> TopoDS_Shape:
     return _prism(planar_face(wire_from_points(pieces)), (0.0, 0.0, height))
 
 
-def _cylinder_line_region(r: float, p0: Vec3, p1: Vec3) -> list:
+def _cylinder_line_region(r: float, p0: Vec3, p1: Vec3, open_start: bool = False) -> list:
     d = _unit((p1[0] - p0[0], p1[1] - p0[1], 0.0))
     n = (-d[1], d[0], 0.0)
     a, b, c, e = _add(p0, n, r), _add(p1, n, r), _add(p1, n, -r), _add(p0, n, -r)
-    return [("line", (a, b)), ("arc", (b, _add(p1, d, r), c)), ("line", (c, e)), ("arc", (e, _add(p0, d, -r), a))]
+    back = ("line", (e, a)) if open_start else ("arc", (e, _add(p0, d, -r), a))
+    return [("line", (a, b)), ("arc", (b, _add(p1, d, r), c)), ("line", (c, e)), back]
 
 
 def _cylinder_line(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape:
@@ -242,8 +249,9 @@ def _cylinder_arc(r: float, h: float, move: ArcMove) -> TopoDS_Shape | None:
     return None if pieces is None else _region_prism(pieces, h)
 
 
-def _cylinder_arc_region(r: float, move: ArcMove) -> list | None:
-    """The boundary of the region a disk of radius ``r`` covers along an XY arc of at most half a turn."""
+def _cylinder_arc_region(r: float, move: ArcMove, open_start: bool = False) -> list | None:
+    """The boundary of the region a disk of radius ``r`` covers along an XY arc of at most half a
+    turn (``open_start``: closed behind by a chord of the start disk, see :func:`cylinder_region`)."""
     c, p0, p1 = move.center, move.start, move.end
     theta = move.sweep
     rho = math.hypot(p0[0] - c[0], p0[1] - c[1])
@@ -259,14 +267,15 @@ def _cylinder_arc_region(r: float, move: ArcMove) -> list | None:
     if rho > r:
         i0, i1, im = (_add(c, v, rho - r) for v in (u0, u1, um))
         i0, i1, im = ((q[0], q[1], p0[2]) for q in (i0, i1, im))
-        pieces = [("arc", (o0, om, o1)), ("arc", (o1, _add(p1, t1, r), i1)),
-                  ("arc", (i1, im, i0)), ("arc", (i0, _add(p0, t0, -r), o0))]
+        back = ("line", (i0, o0)) if open_start else ("arc", (i0, _add(p0, t0, -r), o0))
+        pieces = [("arc", (o0, om, o1)), ("arc", (o1, _add(p1, t1, r), i1)), ("arc", (i1, im, i0)), back]
     else:
         # the end circles meet behind the arc centre; every disk in between covers the rest
         half = 0.5 * abs(theta)
         k = math.sqrt(r * r - (rho * math.sin(half)) ** 2) - rho * math.cos(half)
         q = (c[0] - k * um[0], c[1] - k * um[1], p0[2])
-        pieces = [("arc", (o0, om, o1)), ("arc", (o1, _add(p1, t1, r), q)), ("arc", (q, _add(p0, t0, -r), o0))]
+        back = ("line", (q, o0)) if open_start else ("arc", (q, _add(p0, t0, -r), o0))
+        pieces = [("arc", (o0, om, o1)), ("arc", (o1, _add(p1, t1, r), q)), back]
     return pieces
 
 

@@ -167,3 +167,74 @@ def test_an_arc_of_the_tool_radius_cuts_the_same_in_solids():
     assert runs[True][-1].removed_volume > 40.0
     for a, b in zip(runs[True], runs[False], strict=True):
         _same(a, b)
+
+
+# -- a cut that starts where the last one ended leaves the start disk out of its region ----------------
+
+def _area(face):
+    from fusioncut.engines.brep.occ import area
+
+    return area(face)
+
+
+@pytest.mark.parametrize("move", [
+    LinearMove((10.0, 15.0, 0.0), (11.3, 15.4, 0.0)),
+    ArcMove((10.0, 15.0, 0.0), (18.0, 15.0, 0.0), center=(14.0, 15.0, 0.0), clockwise=True),  # wide arc
+    ArcMove((10.0, 15.0, 0.0), (11.0, 16.0, 0.0), center=(11.0, 15.0, 0.0), clockwise=True),  # tighter than r
+])
+def test_the_open_start_region_differs_from_the_swept_one_inside_the_start_disk_only(move):
+    r = 3.0
+    full, open_ = cylinder_region(r, move), cylinder_region(r, move, open_start=True)
+    start_disk = cylinder_region(r, LinearMove((*move.start[:2], move.start[2] + 1.0), move.start))  # at z = 0 too
+    # stadium ⊇ open region ⊇ stadium − start disk: (full − open) lies in the start disk, and what
+    # the open region adds to the disk is the whole full region outside the disk
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut
+
+    left_out = BRepAlgoAPI_Cut(full, open_).Shape()
+    assert _area(BRepAlgoAPI_Cut(open_, full).Shape()) == pytest.approx(0.0, abs=1e-9)
+    assert _area(BRepAlgoAPI_Cut(left_out, start_disk).Shape()) == pytest.approx(0.0, abs=1e-9)
+    assert _area(BRepAlgoAPI_Common(left_out, start_disk).Shape()) > 0.1 * math.pi * r * r  # not a no-op
+
+
+def test_a_cut_from_the_last_ones_end_disk_equals_the_full_sweep_on_a_trochoid():
+    """Consecutive chords of trochoidal loops: every CL after the first starts in the disk the last
+    left empty. The engine as it runs (open regions) against one that never knows the last disk."""
+    tool = FlatEndMill(6.0, 15.0, number=1)
+    pts = [(2.0, 15.0, -3.0)]
+    for k in range(60):
+        t = 2 * math.pi * k / 20
+        pts.append((5.0 + 0.12 * k + 2.0 * math.cos(t) - 2.0, 15.0 + 2.0 * math.sin(t), -3.0))
+    moves = tuple(LinearMove(a, b, feed=600.0, tool=1) for a, b in zip(pts, pts[1:]))
+    tp = Toolpath(moves, {1: tool})
+    open_engine, closed = BRepEngine(EngineOptions()), BRepEngine(EngineOptions())
+    open_engine.start(BLOCK)
+    closed.start(BLOCK)
+    opened = 0
+    for index, move in enumerate(moves):
+        opened += open_engine.cleared is not None
+        a = open_engine.step(index, move, tool, 0.0)
+        closed.cleared = None
+        b = closed.step(index, move, tool, 0.0)
+        assert a.status == b.status and a.removed_volume == pytest.approx(b.removed_volume, rel=1e-6, abs=1e-9)
+        assert len(a.slices) == len(b.slices)
+        for sa, sb in zip(a.slices, b.slices):
+            assert [a for i in sa.intervals for a in (i.entry, i.exit)] == pytest.approx(
+                [a for i in sb.intervals for a in (i.entry, i.exit)], abs=1e-3)
+    assert opened == len(moves) - 1
+    assert any(c.layers for c in open_engine.cells)  # the layered path was the one tested
+
+
+def test_a_cut_below_the_last_ones_end_keeps_its_whole_start_disk():
+    """A plunge to 1 mm, then a slot from the same XY but 3 mm deep: the disk the plunge left empty
+    ends 1 mm down, so the slot's region must keep its start disk (closed form)."""
+    tool, r = FlatEndMill(6.0, 15.0, number=1), 3.0
+    moves = (LinearMove((10.0, 15.0, 5.0), (10.0, 15.0, -1.0), feed=300.0, tool=1),
+             LinearMove((10.0, 15.0, -3.0), (25.0, 15.0, -3.0), feed=600.0, tool=1))
+    engine = BRepEngine(EngineOptions())
+    engine.start(BLOCK)
+    plunge = engine.step(0, moves[0], tool, 0.0)
+    assert engine.cleared[:3] == (10.0, 15.0, -1.0) and engine.cleared[4] == r
+    slot = engine.step(1, moves[1], tool, 0.0)
+    disk, stadium = math.pi * r * r, 15.0 * 2 * r + math.pi * r * r
+    assert plunge.removed_volume == pytest.approx(disk * 1.0, rel=1e-9)
+    assert slot.removed_volume == pytest.approx(stadium * 3.0 - disk * 1.0, rel=1e-9)
