@@ -51,7 +51,7 @@ from fusioncut.engines.brep.layers import (
     stack_volume,
 )
 from fusioncut.engines.brep.occ import (
-    boolean, bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections,
+    boolean, bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, quarters,
     read_binary_brep, solids, split_into_cells, unify, volume, volume_change, without_slivers, write_binary_brep,
     write_brep,
 )
@@ -72,6 +72,8 @@ log = logging.getLogger("fusioncut.engine")
 # with more layers than this (the ledges a helical entry's steps leave on its bore) goes on as a
 # solid: on the quick benchmark's CLs 997-1800, 6 took 19.6 s, 30 took 23.0 s (all solid: 22.4 s)
 MAX_LAYERS = 6
+# a solid cell is split into quarters down to cell_size / MAX_SPLIT (20 mm cells: 5 mm; see _quarter)
+MAX_SPLIT = 4
 
 
 class BooleanFailure(Exception):
@@ -85,6 +87,8 @@ class Cell:
     The material is either a B-Rep ``solid`` or, while only cylindrical tools have cut it
     horizontally or vertically, a stack of 2.5D ``layers`` (:mod:`fusioncut.engines.brep.layers`);
     then the solid is built only when asked for (``shape``) and kept until the next cut.
+    ``square`` is the column ``(x0, y0, size)`` of the grid the cell stands for (None: the whole
+    workpiece in one cell); a solid cell may be split into its four quarter squares.
     """
 
     solid: TopoDS_Shape | None
@@ -92,6 +96,7 @@ class Cell:
     faces_at_merge: int = 0
     volume: float = 0.0
     layers: tuple[Layer, ...] | None = None
+    square: tuple[float, float, float] | None = None
 
     @property
     def empty(self) -> bool:
@@ -124,9 +129,9 @@ class Cell:
         if self.layers is None and self.solid is not None:
             layers = solid_layers(self.solid, MAX_LAYERS)
             if layers is not None:
-                solid = self.solid
+                # the solid goes too: built again from the layers when needed, it is the very shape
+                # a run resumed from a checkpoint (which keeps the layers) builds, bit for bit
                 self.set_layers(layers)
-                self.solid = solid  # the same material: keep the solid already built
 
     def to_solid(self) -> None:
         """Leave the layered form (a cut the layers cannot take is coming)."""
@@ -157,8 +162,8 @@ class BRepEngine:
         self.removed_total = 0.0
         self.cleared = None
         self.cells = []
-        for piece in split_into_cells(solid, self.options.cell_size):
-            cell = Cell(None, None, count_faces(piece))
+        for piece, square in split_into_cells(solid, self.options.cell_size):
+            cell = Cell(None, None, count_faces(piece), square=square)
             cell.set(piece)
             self.cells.append(cell)
         self.adopt_layers()
@@ -211,7 +216,7 @@ class BRepEngine:
         state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
                  "removed_total": self.removed_total, "faces_at_merge": [c.faces_at_merge for c in self.cells],
                  "layers": [[(la.z_lo, la.z_hi) for la in c.layers] if c.layers else None for c in self.cells],
-                 "cleared": self.cleared}
+                 "squares": [c.square for c in self.cells], "cleared": self.cleared}
         (folder / "state.json.tmp").write_text(json.dumps(state))
         os.replace(folder / "state.json.tmp", folder / "state.json")
         for old in folder.glob("ipw-*.bbrep"):
@@ -229,8 +234,9 @@ class BRepEngine:
             return None
         self.cells = []
         heights = state.get("layers") or [None] * len(state["faces_at_merge"])
-        for child, merged, zs in zip(children(ipw), state["faces_at_merge"], heights):
-            cell = Cell(None, None, merged)
+        squares = state.get("squares") or [None] * len(state["faces_at_merge"])
+        for child, merged, zs, square in zip(children(ipw), state["faces_at_merge"], heights, squares):
+            cell = Cell(None, None, merged, square=tuple(square) if square else None)
             if zs:
                 cell.set_layers(tuple(make_layer(z0, z1, region) for region, (z0, z1) in zip(children(child), zs)))
             else:
@@ -397,8 +403,9 @@ class BRepEngine:
         except Exception as exc:  # noqa: BLE001
             outcome.status, outcome.reason = CLStatus.FAILED, f"contact analysis failed: {exc}"
         timings["contact"] = (time.perf_counter() - t2) * 1e3
+        level_flat_cut = motion is move and cylinder_tool(tool) is not None
         for cell, *_ in results:
-            self._maybe_merge(cell)
+            self._maybe_merge(cell, tool, level_flat_cut)
         return outcome, contacts
 
     # -- internals ----------------------------------------------------------------------------
@@ -476,18 +483,70 @@ class BRepEngine:
         face = cylinder_region(cyl[0], motion.translated((0.0, 0.0, -z_tip)), open_start)  # the region at z = 0
         return None if face is None else CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1])
 
-    def _maybe_merge(self, cell: Cell) -> None:
+    def _maybe_merge(self, cell: Cell, tool: MillingTool, level_flat_cut: bool) -> None:
+        """After a solid cell was cut: merge its faces when they grew by ``merge_growth``; then,
+        after a merge or a level cut of a cylindrical tool (``level_flat_cut``: no ramp or helix
+        step), let it take the layers when it is 2.5D again, or else split it into quarters."""
         if cell.empty or cell.layers is not None:
             return
         n = count_faces(cell.shape)
-        if n > (1 + self.options.merge_growth) * cell.faces_at_merge:
+        merged = n > (1 + self.options.merge_growth) * cell.faces_at_merge
+        if merged:
             try:
                 cell.set(unify(cell.shape, cell.volume), cell.volume)
             except Exception as exc:  # noqa: BLE001 - merging is an optimisation: keep the cell as it is
                 log.debug("face merge skipped: %s", exc)
             cell.faces_at_merge = count_faces(cell.shape) if cell.shape is not None else 0
+        if not (self.options.layers and self.options.sweep == "exact") or not (merged or level_flat_cut):
+            return
+        cell.to_layers()  # back to layers once a helical entry's floor steps are gone
+        # not while a helix is stepping down (quarters multiply its Booleans: the full benchmark's
+        # first helix, CLs 1000-1250, took 11.9 s in 20 mm cells and 17.4 s split down to 5 mm), and
+        # not for ball end mills (their scallops are everywhere they went: quick benchmark's finish
+        # 11.7 -> 17.9 s)
+        if cell.layers is None and level_flat_cut and cell.square is not None and cell.square[2] > self._smallest_square:
+            self._quarter(cell)
+
+    @property
+    def _smallest_square(self) -> float:
+        return (self.options.cell_size or 0.0) / MAX_SPLIT * (1 + 1e-9)
+
+    def _quarter(self, cell: Cell) -> None:
+        """Put the cell's four quarter squares in its place; those that are 2.5D take the layers.
+
+        A solid cell stays solid where any of its material is not 2.5D (the ledges a helical entry
+        leaves on its bore, a ball end mill's scallops), and every Boolean of every CL near it pays
+        for all its faces; its quarters away from such material go back to the cheap layered cuts.
+        On the benchmark's adaptive CLs after a helical entry (CLs 1250-2250 and 5000-6000 of the
+        full program), quartering the solid cells down to 5 mm took 14.3 -> 11.4 s and 15.5 -> 11.2 s.
+        A split that loses volume (1e-9 relative) is not taken, and the cell is not split again.
+        """
+        x0, y0, size = cell.square
+        half = 0.5 * size
+        try:
+            pieces = quarters(cell.shape, x0 + half, y0 + half)
+        except Exception as exc:  # noqa: BLE001 - splitting is an optimisation: keep the cell as it is
+            pieces, reason = None, str(exc)
+        else:
+            volumes = [volume(p) if p is not None else 0.0 for p in pieces]
+            reason = f"the quarters hold {sum(volumes) - cell.volume:.3g} mm³ more than the cell"
+            if abs(sum(volumes) - cell.volume) > 1e-9 * abs(cell.volume) + 1e-6:
+                pieces = None
+        if pieces is None:
+            log.debug("cell at %s not split: %s", cell.square, reason)
+            cell.square = (x0, y0, 0.0)  # a square of size 0 is never split again
+            return
+        new = []
+        for (i, j), piece, piece_volume in zip(((0, 0), (1, 0), (0, 1), (1, 1)), pieces, volumes):
+            if piece is None:
+                continue
+            quarter = Cell(None, None, count_faces(piece), square=(x0 + i * half, y0 + j * half, half))
+            quarter.set(piece, piece_volume)
             if self.options.layers and self.options.sweep == "exact":
-                cell.to_layers()  # back to layers once a helical entry's floor steps are gone
+                quarter.to_layers()
+            new.append(quarter)
+        k = next(k for k, c in enumerate(self.cells) if c is cell)
+        self.cells[k:k + 1] = new
 
     def _save_failure(self, index: int, sweep: TopoDS_Shape) -> str:
         folder = self.options.failure_dir or Path("fusioncut-failures")

@@ -328,19 +328,19 @@ def children(shape: TopoDS_Shape) -> list[TopoDS_Shape]:
     return out
 
 
-def split_into_cells(solid: TopoDS_Shape, size: float | None) -> list[TopoDS_Shape]:
+def split_into_cells(solid: TopoDS_Shape, size: float | None) -> list[tuple[TopoDS_Shape, tuple[float, float, float] | None]]:
     """``solid`` cut into square columns of ``size`` mm in X and Y (full height); ``None``: whole.
 
-    Columns without material are left out. The grid starts at the corner of the solid's exact
-    bounding box: the usual box is widened by the edges' tolerance (1e-7 mm), and walls that far from
-    the round coordinates CAM programs use (a helix centred on a wall) sit within the kernel's
-    tolerance of the sweeps' edges; the cells' volumes then drifted by 1e-6 mm³ per CL, 1.7e-8 of
-    the removal on a helical entry, against 3e-14 with exact walls.
+    Returns (piece, (x0, y0, size)) per column, the square ``[x0, x0 + size] × [y0, y0 + size]`` it
+    stands for (the outer columns' pieces reach past it: no sliver of material is left out); the
+    square is None for the whole solid. Columns without material are left out. The grid starts at
+    the corner of the solid's exact bounding box: the usual box is widened by the edges' tolerance
+    (1e-7 mm), and walls that far from the round coordinates CAM programs use (a helix centred on a
+    wall) sit within the kernel's tolerance of the sweeps' edges; the cells' volumes then drifted by
+    1e-6 mm³ per CL, 1.7e-8 of the removal on a helical entry, against 3e-14 with exact walls.
     """
     if size is None:
-        return [solid]
-    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
-
+        return [(solid, None)]
     lo, hi = bounding_box(solid, exact=True)
     nx = max(1, math.ceil((hi[0] - lo[0]) / size - 1e-9))
     ny = max(1, math.ceil((hi[1] - lo[1]) / size - 1e-9))
@@ -348,15 +348,35 @@ def split_into_cells(solid: TopoDS_Shape, size: float | None) -> list[TopoDS_Sha
     for i in range(nx):
         for j in range(ny):
             x0, y0 = lo[0] + i * size, lo[1] + j * size
-            # the outer columns reach past the box so no sliver of material is left out
             x1 = x0 + size if i < nx - 1 else hi[0] + 1.0
             y1 = y0 + size if j < ny - 1 else hi[1] + 1.0
-            x0, y0 = (x0 - 1.0 if i == 0 else x0), (y0 - 1.0 if j == 0 else y0)
-            box = BRepPrimAPI_MakeBox(gp_Pnt(x0, y0, lo[2] - 1.0), gp_Pnt(x1, y1, hi[2] + 1.0)).Shape()
-            piece = BRepAlgoAPI_Common(solid, box).Shape()
-            if solids(piece):
-                out.append(unify(piece))
+            piece = _in_box(solid, (x0 - 1.0 if i == 0 else x0, y0 - 1.0 if j == 0 else y0, lo[2] - 1.0),
+                            (x1, y1, hi[2] + 1.0))
+            if piece is not None:
+                out.append((piece, (x0, y0, size)))
     return out
+
+
+def quarters(solid: TopoDS_Shape, x: float, y: float) -> list[TopoDS_Shape | None]:
+    """``solid`` split by the planes ``x`` and ``y`` (mm) into its quadrants, in the order
+    (-x, -y), (+x, -y), (-x, +y), (+x, +y); None where a quadrant holds no material."""
+    lo, hi = bounding_box(solid)
+    out = []
+    for ya, yb in ((lo[1] - 1.0, y), (y, hi[1] + 1.0)):
+        for xa, xb in ((lo[0] - 1.0, x), (x, hi[0] + 1.0)):
+            out.append(_in_box(solid, (xa, ya, lo[2] - 1.0), (xb, yb, hi[2] + 1.0)) if xa < xb and ya < yb else None)
+    return out
+
+
+def _in_box(solid: TopoDS_Shape, lo: Vec3, hi: Vec3) -> TopoDS_Shape | None:
+    """The part of ``solid`` inside the box (faces merged), None if it holds no material."""
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+
+    op = BRepAlgoAPI_Common(solid, BRepPrimAPI_MakeBox(pnt(lo), pnt(hi)).Shape())
+    if not op.IsDone():
+        raise RuntimeError("splitting the workpiece into cells failed")
+    piece = op.Shape()
+    return unify(piece) if solids(piece) else None
 
 
 def compound(shapes: Iterable[TopoDS_Shape]) -> TopoDS_Compound:

@@ -65,21 +65,22 @@ WORKERS_TIMEOUT_S = 60
 # -- cells as bytes ---------------------------------------------------------------------------------
 
 
-def pack_cells(cells: list[Cell]) -> tuple[bytes, list[int]]:
+def pack_cells(cells: list[Cell]) -> tuple[bytes, list[tuple[int, tuple[float, float, float] | None]]]:
     """Cells as the checkpoint writes them (one compound child per cell, an empty compound for a
-    cell cut away, binary BRep: doubles kept exactly) and their face counts at the last merge."""
+    cell cut away, binary BRep: doubles kept exactly) and per cell its face count at the last merge
+    and its grid square."""
     stream = io.BytesIO()
     BinTools.Write_s(compound(c.shape if c.shape is not None else compound([]) for c in cells), stream)
-    return stream.getvalue(), [c.faces_at_merge for c in cells]
+    return stream.getvalue(), [(c.faces_at_merge, c.square) for c in cells]
 
 
-def unpack_cells(data: bytes, faces_at_merge: list[int]) -> list[Cell]:
+def unpack_cells(data: bytes, records: list[tuple[int, tuple[float, float, float] | None]]) -> list[Cell]:
     """The cells of :func:`pack_cells`, rebuilt as :meth:`BRepEngine.load_checkpoint` rebuilds them."""
     shape = TopoDS_Shape()
     BinTools.Read_s(shape, io.BytesIO(data))
     cells = []
-    for child, merged in zip(children(shape), faces_at_merge, strict=True):
-        cell = Cell(None, None, merged)
+    for child, (merged, square) in zip(children(shape), records, strict=True):
+        cell = Cell(None, None, merged, square=square)
         cell.set(child)
         cells.append(cell)
     return cells
@@ -91,11 +92,11 @@ def unpack_cells(data: bytes, faces_at_merge: list[int]) -> list[Cell]:
 class PartitionWorker:
     """Dask actor: some cells of the IPW (as of CL ``position``) and the program's CL sequence."""
 
-    def __init__(self, cells: bytes, faces_at_merge: list[int], stock_volume: float, options: EngineOptions,
+    def __init__(self, cells: bytes, records: list, stock_volume: float, options: EngineOptions,
                  toolpath: Toolpath, default_tool: MillingTool | None, position: int) -> None:
         # one worker per core: the kernel's own threads would only compete with the other workers
         self.engine = BRepEngine(replace(options, kernel_threads=False))
-        self.engine.cells = unpack_cells(cells, faces_at_merge)
+        self.engine.cells = unpack_cells(cells, records)
         self.engine.adopt_layers()
         # the whole stock's: the engine's "nothing removed" threshold is relative to it
         self.engine.stock_volume = stock_volume
@@ -376,10 +377,13 @@ class ParallelBRepEngine:
             if self._cells is None:
                 raise RuntimeError("the workers that held the workpiece are closed")
             return self._cells
+        answers = [unpack_cells(*f.result()) for f in [a.cells_at(self._next) for a in self._actors]]
+        if any(len(ids) != len(got) for ids, got in zip(self._parts, answers)):
+            # a worker split cells into quarters: its cells follow each other, in its own order
+            return [cell for got in answers for cell in got]
         cells: list[Cell | None] = [None] * sum(len(ids) for ids in self._parts)
-        answers = [f.result() for f in [a.cells_at(self._next) for a in self._actors]]
-        for ids, (data, merged) in zip(self._parts, answers):
-            for i, cell in zip(ids, unpack_cells(data, merged), strict=True):
+        for ids, got in zip(self._parts, answers):
+            for i, cell in zip(ids, got, strict=True):
                 cells[i] = cell
         return cells  # type: ignore[return-value]
 

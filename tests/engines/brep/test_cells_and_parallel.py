@@ -128,3 +128,58 @@ def test_cell_partition_deals_out_every_cell_once_and_splits_neighbours(n_cells,
     # the cells are listed column by column: the next one in the list is a neighbour in its column
     assert all(owner[i] != owner[i + 1] for i in range(n_cells - 1)) or parts == 1
     assert max(map(len, shares)) - min(map(len, shares)) <= 1
+
+
+def staircase_and_slots() -> Toolpath:
+    """1.75 turns of a helical entry (no flat turn: a staircase floor) centred on the corner of four
+    20 mm cells, then level slots that reach over three of them."""
+    from test_helical_entry import helical_entry
+
+    entry = helical_entry()
+    z = entry.moves[1].end[2]
+    pts = [(0.0, 4.0), (17.0, 4.0), (17.0, -6.0), (-16.0, -6.0), (-16.0, 15.0)]
+    slots = tuple(LinearMove((*a, z), (*b, z), feed=900.0, tool=1) for a, b in zip(pts, pts[1:]))
+    return Toolpath(entry.moves[:2] + slots, entry.tools)
+
+
+def test_solid_cells_split_into_quarters_equal_unsplit_cells(monkeypatch):
+    """A helical entry without a flat turn leaves a staircase floor: its four 20 mm cells go solid.
+    Level slots after it split them into quarters, and those away from the staircase take the
+    layers; CL by CL the results equal an engine that never splits, and volume adds up."""
+    import fusioncut.engines.brep.engine as engine_module
+    from test_helical_entry import STOCK as BLOCK
+
+    tp = staircase_and_slots()
+    options = EngineOptions(ramp_step=0.2, max_segment_length=2.0)
+    runs = {}
+    for split in (1, engine_module.MAX_SPLIT):
+        monkeypatch.setattr(engine_module, "MAX_SPLIT", split)
+        engine = BRepEngine(options)
+        runs[split] = list(engine.run(tp, BLOCK))
+        conserved(engine)
+        sizes = sorted({c.square[2] for c in engine.cells})
+        if split == 1:
+            assert sizes == [20.0] and any(c.layers is None for c in engine.cells)
+        else:
+            assert sizes[0] < 20.0  # quartered...
+            assert any(c.layers is not None and c.square[2] < 20.0 for c in engine.cells)  # ...and layered again
+    assert_same(runs[engine_module.MAX_SPLIT], runs[1])
+
+
+def test_dask_workers_split_cells_as_one_process():
+    """Workers split their own solid cells; the workpiece gathered from them holds every quarter."""
+    pytest.importorskip("distributed")
+    from test_helical_entry import STOCK as BLOCK
+
+    from fusioncut.engines.brep.occ import volume
+    from fusioncut.engines.brep.parallel import ParallelBRepEngine
+
+    options = EngineOptions(ramp_step=0.2, max_segment_length=2.0)
+    one = BRepEngine(options)
+    alone = list(one.run(staircase_and_slots(), BLOCK))
+    with ParallelBRepEngine(options, workers=2, batch=9) as engine:
+        maps = list(engine.run(staircase_and_slots(), BLOCK))
+        gathered = engine.cells
+        assert volume(engine.ipw) == pytest.approx(one.ipw_volume, rel=1e-9)
+    assert len(gathered) == len(one.cells) > 4
+    assert_same(maps, alone)

@@ -65,4 +65,4 @@ def test_resumed_mixed_layered_and_solid_cells_equal_uninterrupted(tmp_path):
         assert second.load_checkpoint(tmp_path / str(k)) == k
         forms.add(tuple(c.layers is not None for c in second.cells))
         assert _strip(done + list(second.process(tp, start_at=k))) == _strip(whole), k
-    assert (False, True) in forms  # resumed with one cell solid and the other layered
+    assert any(False in form and True in form for form in forms)  # resumed with solid and layered cells
