@@ -63,8 +63,8 @@ class Layer:
         return self.area * (self.z_hi - self.z_lo)
 
 
-def make_layer(z_lo: float, z_hi: float, region: TopoDS_Shape) -> Layer:
-    return Layer(z_lo, z_hi, region, area(region), bounding_box(region))
+def make_layer(z_lo: float, z_hi: float, region: TopoDS_Shape, region_area: float | None = None) -> Layer:
+    return Layer(z_lo, z_hi, region, area(region) if region_area is None else region_area, bounding_box(region))
 
 
 def _moved(shape: TopoDS_Shape, dz: float) -> TopoDS_Shape:
@@ -198,7 +198,7 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_t
         if la.z_hi <= z_tip or untouched_above or not boxes_overlap(la.box, region_box):
             out.append(la)
             continue
-        new_region, op = _cut_region(la.region, region, la.area, fuzzy_values)
+        new_region, new_area, op = _cut_region(la.region, region, la.area, fuzzy_values)
         if new_region is None:
             untouched_above = True  # nested regions: nothing lost here, nothing lost above
             out.append(la)
@@ -206,7 +206,7 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_t
         if la.z_lo < z_tip:
             out.append(Layer(la.z_lo, z_tip, la.region, la.area, la.box))
         z_lo = max(la.z_lo, z_tip)
-        new = make_layer(z_lo, la.z_hi, new_region) if any(True for _ in faces(new_region)) else None
+        new = make_layer(z_lo, la.z_hi, new_region, new_area) if any(True for _ in faces(new_region)) else None
         if new is not None and new.area <= 1e-12:
             new = None
         removed += (la.area - (new.area if new else 0.0)) * (la.z_hi - z_lo)
@@ -228,7 +228,7 @@ def _joined(layers: list[Layer]) -> tuple[Layer, ...]:
 
 
 def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_values: tuple[float, ...]):
-    """(the new region, the Cut with its history), or (None, None) when nothing is lost.
+    """(the new region, its area in mm², the Cut with its history), or Nones when nothing is lost.
 
     As in 3D, the Common is an independent check of the Cut: old area − new area = common area.
     """
@@ -244,17 +244,18 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
             continue
         lost = area(common.Shape())
         if lost <= 1e-12 * max(1.0, old_area):
-            return None, None
+            return None, None, None
         cut = boolean(old, tool, pf, BOPAlgo_Operation.BOPAlgo_CUT)
         if cut.HasErrors():
             last = f"2D cut failed (fuzzy={fuzzy})"
             continue
         new = cut.Shape()
-        mismatch = old_area - area(new) - lost
+        new_area = area(new)
+        mismatch = old_area - new_area - lost
         if abs(mismatch) > 1e-6 + 1e-6 * old_area:
             last = f"2D cut and common disagree by {mismatch:.4g} mm² (fuzzy={fuzzy})"
             continue
-        return new, cut
+        return new, new_area, cut
     raise RegionCutFailure(last)
 
 
