@@ -164,8 +164,13 @@ class MaterialCeiling:
         self.heights = np.full((math.ceil(w / pixel) + 2, math.ceil(h / pixel) + 2), float(top))
         self.half_diagonal = pixel * math.sqrt(0.5)
 
-    def _window(self, fp: SweepFootprint, margin: float) -> tuple[slice, slice, np.ndarray] | None:
-        """Pixel ranges around the footprint and the distances of their centres to its path."""
+    def _window(self, fp: SweepFootprint, margin: float, above: float):
+        """The pixel ranges around the footprint, and of the pixels there whose height bound is above
+        ``above`` (mm) their indices in the window and the distances of their centres to the path.
+
+        Only those pixels can matter to a test or a clear, and along a trochoid most of the window
+        lies in the slot already cut: measuring the distance of just these took the map's share of a
+        benchmark CL from ~0.8 ms to ~0.3 ms (the same pixels, the same formula)."""
         x0, y0, x1, y1 = fp.box(margin)
         i0, j0 = self._index(x0, y0)
         i1, j1 = self._index(x1, y1)
@@ -173,41 +178,43 @@ class MaterialCeiling:
         i0, j0, i1, j1 = max(i0, 0), max(j0, 0), min(i1 + 1, nx), min(j1 + 1, ny)
         if i0 >= i1 or j0 >= j1:
             return None
+        si, sj = slice(i0, i1), slice(j0, j1)
+        ii, jj = np.nonzero(self.heights[si, sj] > above)
         p = self.pixel
-        xs = self.origin[0] + (np.arange(i0, i1) + 0.5) * p
-        ys = self.origin[1] + (np.arange(j0, j1) + 0.5) * p
-        return slice(i0, i1), slice(j0, j1), fp.distance(xs[:, None], ys[None, :])
+        xs = self.origin[0] + (ii + i0 + 0.5) * p
+        ys = self.origin[1] + (jj + j0 + 0.5) * p
+        return si, sj, ii, jj, fp.distance(xs, ys)
 
     def _index(self, x: float, y: float) -> tuple[int, int]:
         return math.floor((x - self.origin[0]) / self.pixel), math.floor((y - self.origin[1]) / self.pixel)
 
     def may_cut(self, fp: SweepFootprint, boxes: list[Box]) -> list[bool]:
         """For each box (of a workpiece cell's material), whether the sweep may remove material in it."""
-        win = self._window(fp, fp.reach + self.pixel)
+        win = self._window(fp, fp.reach + self.pixel, fp.z_low + NOISE)
         if win is None:
             return [False] * len(boxes)
-        si, sj, d = win
-        hot = (d - self.half_diagonal < fp.reach) & (self.heights[si, sj] > fp.z_low + NOISE)
-        if not hot.any():
+        si, sj, ii, jj, d = win
+        hot = d - self.half_diagonal < fp.reach
+        ii, jj = ii[hot] + si.start, jj[hot] + sj.start
+        if not len(ii):
             return [False] * len(boxes)
         out = []
         for (lo, hi) in boxes:
             # every pixel that overlaps the box, and one more on each side
             a0, b0 = self._index(lo[0], lo[1])
             a1, b1 = self._index(hi[0], hi[1])
-            a0, b0 = max(a0 - 1 - si.start, 0), max(b0 - 1 - sj.start, 0)
-            a1, b1 = a1 + 2 - si.start, b1 + 2 - sj.start
-            out.append(a1 > 0 and b1 > 0 and bool(hot[a0:a1, b0:b1].any()))
+            out.append(bool(((ii >= a0 - 1) & (ii < a1 + 2) & (jj >= b0 - 1) & (jj < b1 + 2)).any()))
         return out
 
     def clear(self, fp: SweepFootprint) -> None:
         """Record that the sweep has been removed from the material."""
         if fp.r_clear is None:
             return
-        win = self._window(fp, fp.r_clear + self.pixel)
+        # only pixels above the tip can be lowered
+        win = self._window(fp, fp.r_clear + self.pixel, fp.z_clear)
         if win is None:
             return
-        si, sj, d = win
+        si, sj, ii, jj, d = win
         view = self.heights[si, sj]
-        inside = (d + self.half_diagonal <= fp.r_clear) & (view <= fp.z_top)
-        view[inside] = np.minimum(view[inside], fp.z_clear)
+        inside = (d + self.half_diagonal <= fp.r_clear) & (view[ii, jj] <= fp.z_top)
+        view[ii[inside], jj[inside]] = fp.z_clear
