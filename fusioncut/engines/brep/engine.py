@@ -51,9 +51,9 @@ from fusioncut.engines.brep.layers import (
     stack_volume,
 )
 from fusioncut.engines.brep.occ import (
-    boolean, bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, quarters,
-    read_binary_brep, solids, split_into_cells, unify, volume, volume_change, without_slivers, write_binary_brep,
-    write_brep,
+    boolean, bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, items,
+    quarters, read_binary_brep, solids, split_into_cells, unify, volume, volume_change, without_slivers,
+    write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import cylinder_region, cylinder_tool, swept_volume
@@ -391,7 +391,7 @@ class BRepEngine:
                 origins = cut.Origins()
                 for f in sweep_faces:
                     images = cut.Modified(f)
-                    found = [TopoDS.Face(s) for s in images] if images.Size() else [] if cut.IsDeleted(f) else [f]
+                    found = [TopoDS.Face(s) for s in items(images)] if images.Size() else [] if cut.IsDeleted(f) else [f]
                     candidates.extend(g for g in found if (kept is None or kept.Contains(g))
                                       and not _on_old_boundary(g, origins, own))
             contacts = find_contact_faces(candidates, tool, move.end)
@@ -504,7 +504,8 @@ class BRepEngine:
         # first helix, CLs 1000-1250, took 11.9 s in 20 mm cells and 17.4 s split down to 5 mm), and
         # not for ball end mills (their scallops are everywhere they went: quick benchmark's finish
         # 11.7 -> 17.9 s)
-        if cell.layers is None and level_flat_cut and cell.square is not None and cell.square[2] > self._smallest_square:
+        if (cell.layers is None and level_flat_cut and cell.square is not None
+                and cell.square[2] > self._smallest_square):
             self._quarter(cell)
 
     @property
@@ -574,7 +575,7 @@ def _on_old_boundary(face, origins, sweep_faces) -> bool:
     first level's trochoids: the tool at 4-7 mm above its tip lay on the first level's walls and
     reported 5-15° arcs there, 32 of 821 adaptive CLs, which force models would have read as cutting.
     """
-    return origins.IsBound(face) and any(not sweep_faces.Contains(s) for s in origins.Find(face))
+    return origins.IsBound(face) and any(not sweep_faces.Contains(s) for s in items(origins.Find(face)))
 
 
 def cl_sequence(toolpath: Toolpath, options: EngineOptions, default_tool: MillingTool | None = None,

@@ -37,7 +37,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 
 from fusioncut.engines.brep.occ import (
-    area, boolean, bounding_box, boxes_overlap, edges, faces, fuse_all, intersections, unify, volume,
+    area, boolean, bounding_box, boxes_overlap, edges, faces, fuse_all, intersections, items, unify, volume,
 )
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -278,11 +278,11 @@ def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[fl
         origins = c.op.Origins()
         for e in on_circle:
             images = c.op.Modified(e)
-            found = [TopoDS.Edge(s) for s in images] if images.Size() else [] if c.op.IsDeleted(e) else [e]
+            found = [TopoDS.Edge(s) for s in items(images)] if images.Size() else [] if c.op.IsDeleted(e) else [e]
             for g in found:
                 if not kept.Contains(g):
                     continue
-                if origins.IsBound(g) and any(not own.Contains(s) for s in origins.Find(g)):
+                if origins.IsBound(g) and any(not own.Contains(s) for s in items(origins.Find(g))):
                     continue
                 a0, a1 = _arc_angles(g, center)
                 ax = gp_Ax3(gp_Pnt(center[0], center[1], 0.0), gp_Dir(0.0, 0.0, 1.0), gp_Dir(1.0, 0.0, 0.0))

@@ -4,6 +4,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Iterable, Iterator
+from itertools import islice
 
 from OCP.BOPAlgo import BOPAlgo_BOP, BOPAlgo_PaveFiller
 from OCP.Bnd import Bnd_Box
@@ -41,6 +42,16 @@ def volume(shape: TopoDS_Shape) -> float:
     props = GProp_GProps()
     BRepGProp.VolumeProperties_s(shape, props)
     return props.Mass()
+
+
+def items(shapes) -> list[TopoDS_Shape]:
+    """The shapes of an OCP list (a Boolean's ``Modified``, a history's ``Find``).
+
+    Not ``list(shapes)``: pybind11 ends an iteration by throwing a C++ exception, and unwinding it in
+    OCP's large library costs ~0.25 ms, more than the rest of a contact face lookup; taking exactly
+    ``Size()`` items never asks for the end (1.5 µs).
+    """
+    return list(islice(shapes, shapes.Size()))
 
 
 def face_map(shape: TopoDS_Shape) -> ShapeMap:
