@@ -22,7 +22,9 @@ layers (``EngineOptions.layers``, :mod:`fusioncut.engines.brep.layers`): the CL'
 planar region taken away from the layers above the tip by 2D Booleans, and the contact faces are
 the engaged arcs of each layer extruded over its height, sliced like any other. A cut the layers
 cannot take (another tool, a ramp's oblique sweep, too many layers) turns the cell into a solid; a
-solid cell whose faces are all horizontal or vertical again takes the layers back at its next merge.
+solid cell whose faces are all horizontal or vertical again takes the layers back at its next merge
+or level flat-end-mill cut, and one that such a cut leaves solid is split into quarter squares
+(down to half of ``cell_size``), so that only the part near what is not 2.5D stays solid.
 Both forms give the same material and the same engagement (tested against an all-solid run).
 
 A failed Boolean is retried with fuzzy values; if it still fails the CL is reported FAILED with the
@@ -72,8 +74,8 @@ log = logging.getLogger("fusioncut.engine")
 # with more layers than this (the ledges a helical entry's steps leave on its bore) goes on as a
 # solid: on the quick benchmark's CLs 997-1800, 6 took 19.6 s, 30 took 23.0 s (all solid: 22.4 s)
 MAX_LAYERS = 6
-# a solid cell is split into quarters down to cell_size / MAX_SPLIT (20 mm cells: 5 mm; see _quarter)
-MAX_SPLIT = 4
+# a solid cell is split into quarters down to cell_size / MAX_SPLIT (20 mm cells: 10 mm; see _quarter)
+MAX_SPLIT = 2
 
 
 class BooleanFailure(Exception):
@@ -316,7 +318,8 @@ class BRepEngine:
             if ceiling is not None:
                 ceiling.clear(fp)  # the exact sweep holds no material, so nothing is left in it either
             return CutOutcome(idle, timings=timings), []  # no sweep built: no method to report
-        region = self._cutting_region(motion, tool, cleared) if any(c.layers for c in candidates) else None
+        open_start = _starts_cleared(motion, tool, cleared)
+        region = self._cutting_region(motion, tool, open_start) if any(c.layers for c in candidates) else None
         flat, solid = [], []  # the cells cut as layers, and those cut as solids
         for c in candidates:
             if (c.layers is not None and region is not None and len(c.layers) <= MAX_LAYERS
@@ -329,7 +332,7 @@ class BRepEngine:
         sweep = None
         if solid:
             try:
-                sweep = swept_volume(tool, motion, self.options.sweep, seam)
+                sweep = swept_volume(tool, motion, self.options.sweep, seam, open_start)
             except Exception as exc:  # noqa: BLE001 - kernel failures become a FAILED CL, never a crash
                 return CutOutcome(CLStatus.FAILED, reason=f"sweep construction failed: {exc}", timings=timings), []
             if motion is not move and sweep.method == "exact":
@@ -465,21 +468,14 @@ class BRepEngine:
         raise BooleanFailure(last)
 
     @staticmethod
-    def _cutting_region(motion: Move, tool: MillingTool,
-                        cleared: tuple[float, float, float, float, float] | None = None) -> CuttingRegion | None:
+    def _cutting_region(motion: Move, tool: MillingTool, open_start: bool = False) -> CuttingRegion | None:
         """What the layers take from this cut, when they can: a tool that is one cylinder, on a
-        horizontal line, an XY arc of up to half a turn or a vertical move; None otherwise.
-
-        When ``cleared`` (the disk the previous CL left empty, see ``BRepEngine.cleared``) holds the
-        tool at the start over the whole cut's height, the region leaves most of that disk out
-        (:func:`~fusioncut.engines.brep.sweep.cylinder_region`'s ``open_start``): same material.
-        """
+        horizontal line, an XY arc of up to half a turn or a vertical move; None otherwise
+        (``open_start``: see :func:`~fusioncut.engines.brep.sweep.cylinder_region`)."""
         cyl = cylinder_tool(tool)
         z_tip, z_end = sorted((motion.start[2], motion.end[2]))
         if cyl is None or (z_end - z_tip > 1e-9 and math.dist(motion.start[:2], motion.end[:2]) > 1e-9):
             return None
-        open_start = (cleared is not None and (cleared[0], cleared[1]) == motion.start[:2]
-                      and cleared[2] <= z_tip and z_end + cyl[1] <= cleared[3] and cyl[0] <= cleared[4])
         face = cylinder_region(cyl[0], motion.translated((0.0, 0.0, -z_tip)), open_start)  # the region at z = 0
         return None if face is None else CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1])
 
@@ -518,10 +514,10 @@ class BRepEngine:
         A solid cell stays solid where any of its material is not 2.5D (the ledges a helical entry
         leaves on its bore, a ball end mill's scallops), and every Boolean of every CL near it pays
         for all its faces; its quarters away from such material go back to the cheap layered cuts.
-        Measured on the full benchmark from a checkpoint at CL 1000 (the first helix, then trochoids
-        beside it): CLs 1000-1500 took 19.2 s unsplit, 18.4 s with 10 mm and 17.9 s with 5 mm
-        quarters; split down to 5 mm at a checkpoint after the helix, CLs 5000-6000 (the next row
-        passing the helix's bore) took 11.2 s against 15.5 s. A split that loses volume (1e-9
+        Quarters stay quarters, and a ball end mill's finish over them pays a Boolean per quarter it
+        reaches, so the split stops at 10 mm: the quick benchmark (20 mm cells) took 80.0 s unsplit
+        (adaptive 61.1 s, contours 2.9 s, finish 11.4 s), 73.4 s split down to 10 mm (55.0, 1.9,
+        12.0 s) and 77.5 s down to 5 mm (57.9, 1.7, 13.5 s). A split that loses volume (1e-9
         relative) is not taken, and the cell is not split again.
         """
         x0, y0, size = cell.square
@@ -557,6 +553,17 @@ class BRepEngine:
         write_brep(self.ipw, str(folder / f"cl{index:06d}_ipw.brep"))
         write_brep(sweep, str(folder / f"cl{index:06d}_sweep.brep"))
         return str(folder / f"cl{index:06d}_*.brep")
+
+
+def _starts_cleared(motion: Move, tool: MillingTool, cleared: tuple[float, float, float, float, float] | None) -> bool:
+    """Whether the disk the previous CL left empty (``BRepEngine.cleared``) holds this cylindrical
+    tool at the start of ``motion`` over the whole height its sweep reaches: then the sweep and the
+    layers' region may leave the start disk out (same material, cheaper Booleans)."""
+    cyl = cylinder_tool(tool)
+    if cleared is None or cyl is None or (cleared[0], cleared[1]) != motion.start[:2]:
+        return False
+    z_tip, z_end = sorted((motion.start[2], motion.end[2]))
+    return cleared[2] <= z_tip and z_end + cyl[1] <= cleared[3] and cyl[0] <= cleared[4]
 
 
 def _reach_box(fp, motion: Move, tool: MillingTool) -> tuple[tuple[float, float, float], tuple[float, float, float]]:

@@ -240,12 +240,12 @@ def _cylinder_line_region(r: float, p0: Vec3, p1: Vec3, open_start: bool = False
     return [("line", (a, b)), ("arc", (b, _add(p1, d, r), c)), ("line", (c, e)), back]
 
 
-def _cylinder_line(r: float, h: float, p0: Vec3, p1: Vec3) -> TopoDS_Shape:
-    return _region_prism(_cylinder_line_region(r, p0, p1), h)
+def _cylinder_line(r: float, h: float, p0: Vec3, p1: Vec3, open_start: bool = False) -> TopoDS_Shape:
+    return _region_prism(_cylinder_line_region(r, p0, p1, open_start), h)
 
 
-def _cylinder_arc(r: float, h: float, move: ArcMove) -> TopoDS_Shape | None:
-    pieces = _cylinder_arc_region(r, move)
+def _cylinder_arc(r: float, h: float, move: ArcMove, open_start: bool = False) -> TopoDS_Shape | None:
+    pieces = _cylinder_arc_region(r, move, open_start)
     return None if pieces is None else _region_prism(pieces, h)
 
 
@@ -415,11 +415,14 @@ def sampled_sweep(tool: MillingTool, move: Move, seam: float = 0.0, spacing: flo
     return fuse_all([placed_tool(tool, move.point_at(k / n), seam) for k in range(n + 1)])
 
 
-def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: float = 0.0) -> SweptVolume:
+def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: float = 0.0,
+                 open_start: bool = False) -> SweptVolume:
     """The solid swept by ``tool`` along ``move`` (a line, or an arc in the XY plane).
 
     ``seam`` (rad, machine angle) is where full tool copies put their cylinder seams: the engine points
-    it away from the feed so that seams never split the engaged faces.
+    it away from the feed so that seams never split the engaged faces. ``open_start``: the tool at
+    the start is known to stand in no material, so a cylindrical tool's level sweep may leave it
+    out behind the start's diameter (:func:`cylinder_region`); other sweeps ignore it.
     """
     if method == "sampled":
         return SweptVolume(sampled_sweep(tool, move, seam), "sampled")
@@ -429,7 +432,7 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
     if isinstance(move, ArcMove):
         if move.plane != ArcPlane.XY or move.is_helix:
             raise ValueError("helices and ZX/YZ arcs must be split into chords first")
-        shape = _cylinder_arc(*cyl, move) if cyl else None
+        shape = _cylinder_arc(*cyl, move, open_start) if cyl else None
         shape = shape or _arc_xy(tool, move, seam)
     else:
         dz = p1[2] - p0[2]
@@ -437,7 +440,7 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
         if dh < _EPS and abs(dz) < _EPS:
             return SweptVolume(placed_tool(tool, p1, seam), "exact")
         if abs(dz) < _EPS:
-            shape = _cylinder_line(*cyl, p0, p1) if cyl else _horizontal_line(tool, p0, p1)
+            shape = _cylinder_line(*cyl, p0, p1, open_start) if cyl else _horizontal_line(tool, p0, p1)
         elif dh < _EPS:
             shape = _plunge(tool, p0, p1, seam)
         else:

@@ -196,9 +196,11 @@ def test_the_open_start_region_differs_from_the_swept_one_inside_the_start_disk_
     assert _area(BRepAlgoAPI_Common(left_out, start_disk).Shape()) > 0.1 * math.pi * r * r  # not a no-op
 
 
-def test_a_cut_from_the_last_ones_end_disk_equals_the_full_sweep_on_a_trochoid():
+@pytest.mark.parametrize("layers", [True, False])
+def test_a_cut_from_the_last_ones_end_disk_equals_the_full_sweep_on_a_trochoid(layers):
     """Consecutive chords of trochoidal loops: every CL after the first starts in the disk the last
-    left empty. The engine as it runs (open regions) against one that never knows the last disk."""
+    left empty. The engine as it runs (open regions, or open sweeps in solid cells) against one that
+    never knows the last disk."""
     tool = FlatEndMill(6.0, 15.0, number=1)
     pts = [(2.0, 15.0, -3.0)]
     for k in range(60):
@@ -206,7 +208,7 @@ def test_a_cut_from_the_last_ones_end_disk_equals_the_full_sweep_on_a_trochoid()
         pts.append((5.0 + 0.12 * k + 2.0 * math.cos(t) - 2.0, 15.0 + 2.0 * math.sin(t), -3.0))
     moves = tuple(LinearMove(a, b, feed=600.0, tool=1) for a, b in zip(pts, pts[1:]))
     tp = Toolpath(moves, {1: tool})
-    open_engine, closed = BRepEngine(EngineOptions()), BRepEngine(EngineOptions())
+    open_engine, closed = BRepEngine(EngineOptions(layers=layers)), BRepEngine(EngineOptions(layers=layers))
     open_engine.start(BLOCK)
     closed.start(BLOCK)
     opened = 0
@@ -221,16 +223,17 @@ def test_a_cut_from_the_last_ones_end_disk_equals_the_full_sweep_on_a_trochoid()
             assert [a for i in sa.intervals for a in (i.entry, i.exit)] == pytest.approx(
                 [a for i in sb.intervals for a in (i.entry, i.exit)], abs=1e-3)
     assert opened == len(moves) - 1
-    assert any(c.layers for c in open_engine.cells)  # the layered path was the one tested
+    assert any(c.layers for c in open_engine.cells) == layers  # the path meant was the one tested
 
 
-def test_a_cut_below_the_last_ones_end_keeps_its_whole_start_disk():
+@pytest.mark.parametrize("layers", [True, False])
+def test_a_cut_below_the_last_ones_end_keeps_its_whole_start_disk(layers):
     """A plunge to 1 mm, then a slot from the same XY but 3 mm deep: the disk the plunge left empty
     ends 1 mm down, so the slot's region must keep its start disk (closed form)."""
     tool, r = FlatEndMill(6.0, 15.0, number=1), 3.0
     moves = (LinearMove((10.0, 15.0, 5.0), (10.0, 15.0, -1.0), feed=300.0, tool=1),
              LinearMove((10.0, 15.0, -3.0), (25.0, 15.0, -3.0), feed=600.0, tool=1))
-    engine = BRepEngine(EngineOptions())
+    engine = BRepEngine(EngineOptions(layers=layers))
     engine.start(BLOCK)
     plunge = engine.step(0, moves[0], tool, 0.0)
     assert engine.cleared[:3] == (10.0, 15.0, -1.0) and engine.cleared[4] == r
