@@ -24,7 +24,7 @@ the engaged arcs of each layer extruded over its height, sliced like any other. 
 cannot take (another tool, a ramp's oblique sweep, too many layers) turns the cell into a solid; a
 solid cell whose faces are all horizontal or vertical again takes the layers back at its next merge
 or level flat-end-mill cut, and one that such a cut leaves solid is split into quarter squares
-(down to half of ``cell_size``), so that only the part near what is not 2.5D stays solid.
+(down to a quarter of ``cell_size``), so that only the part near what is not 2.5D stays solid.
 Both forms give the same material and the same engagement (tested against an all-solid run).
 
 A failed Boolean is retried with fuzzy values; if it still fails the CL is reported FAILED with the
@@ -74,8 +74,8 @@ log = logging.getLogger("fusioncut.engine")
 # with more layers than this (the ledges a helical entry's steps leave on its bore) goes on as a
 # solid: on the quick benchmark's CLs 997-1800, 6 took 19.6 s, 30 took 23.0 s (all solid: 22.4 s)
 MAX_LAYERS = 6
-# a solid cell is split into quarters down to cell_size / MAX_SPLIT (20 mm cells: 10 mm; see _quarter)
-MAX_SPLIT = 2
+# a solid cell is split into quarters down to cell_size / MAX_SPLIT (20 mm cells: 5 mm; see _quarter)
+MAX_SPLIT = 4
 
 
 class BooleanFailure(Exception):
@@ -515,10 +515,11 @@ class BRepEngine:
         leaves on its bore, a ball end mill's scallops), and every Boolean of every CL near it pays
         for all its faces; its quarters away from such material go back to the cheap layered cuts.
         Quarters stay quarters, and a ball end mill's finish over them pays a Boolean per quarter it
-        reaches, so the split stops at 10 mm: the quick benchmark (20 mm cells) took 80.0 s unsplit
-        (adaptive 61.1 s, contours 2.9 s, finish 11.4 s), 73.4 s split down to 10 mm (55.0, 1.9,
-        12.0 s) and 77.5 s down to 5 mm (57.9, 1.7, 13.5 s). A split that loses volume (1e-9
-        relative) is not taken, and the cell is not split again.
+        reaches. The full benchmark (20 mm cells, same day) ran best split down to 5 mm: adaptive
+        p95 18.5 ms against 26.2 ms down to 10 mm, contours 8.3 s against 9.2 s, the finish 60.8 s
+        against 61.3 s (the quick one, whose finish runs where its helices were, preferred 10 mm:
+        73.4 s against 77.5 s, unsplit 80.0 s). A split that loses volume (1e-9 relative) is not
+        taken, and the cell is not split again.
         """
         x0, y0, size = cell.square
         half = 0.5 * size
