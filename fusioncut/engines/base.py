@@ -32,7 +32,7 @@ class EngineOptions:
     entry centred on a cell corner conserves volume to 1e-9). On the quick Titan-like benchmark 20 mm
     cells took 156 s against 275 s for the whole workpiece, and the adaptive median 48 against 85 ms.
     A cell that a level flat-end-mill cut leaves solid is split into quarter squares, down to a
-    quarter of ``cell_size`` (``fusioncut.engines.brep.engine.BRepEngine._quarter`` says why not further).
+    quarter of ``cell_size`` (``fusioncut.engines.brep.engine.BRepEngine._quarter`` says why that far).
 
     ``fuzzy``: the Booleans' fuzzy value (mm). ``None`` means 1e-6 with cells and 0 (exact) without:
     cells need it (with 0, OCCT returned an empty Common where a sweep face lay on a cell wall), the

@@ -515,10 +515,10 @@ class BRepEngine:
         leaves on its bore, a ball end mill's scallops), and every Boolean of every CL near it pays
         for all its faces; its quarters away from such material go back to the cheap layered cuts.
         Quarters stay quarters, and a ball end mill's finish over them pays a Boolean per quarter it
-        reaches. The full benchmark (20 mm cells, same day) ran best split down to 5 mm: adaptive
-        p95 18.5 ms against 26.2 ms down to 10 mm, contours 8.3 s against 9.2 s, the finish 60.8 s
-        against 61.3 s (the quick one, whose finish runs where its helices were, preferred 10 mm:
-        73.4 s against 77.5 s, unsplit 80.0 s). A split that loses volume (1e-9 relative) is not
+        reaches. Two full benchmark runs on one day (20 mm cells) favoured 5 mm over 10 mm: adaptive
+        p95 18.5 against 26.2 ms, contours 8.3 against 9.2 s, the finish 60.8 against 61.3 s (the
+        10 mm run also had the open start sweeps in solid cells). The quick benchmark, whose finish
+        runs where its helices were, preferred 10 mm: 73.4 s against 77.5 s, unsplit 80.0 s. A split that loses volume (1e-9 relative) is not
         taken, and the cell is not split again.
         """
         x0, y0, size = cell.square
