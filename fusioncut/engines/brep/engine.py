@@ -518,8 +518,8 @@ class BRepEngine:
         reaches. Two full benchmark runs on one day (20 mm cells) favoured 5 mm over 10 mm: adaptive
         p95 18.5 against 26.2 ms, contours 8.3 against 9.2 s, the finish 60.8 against 61.3 s (the
         10 mm run also had the open start sweeps in solid cells). The quick benchmark, whose finish
-        runs where its helices were, preferred 10 mm: 73.4 s against 77.5 s, unsplit 80.0 s. A split that loses volume (1e-9 relative) is not
-        taken, and the cell is not split again.
+        runs where its helices were, preferred 10 mm: 73.4 s against 77.5 s, unsplit 80.0 s.
+        A split that loses volume (1e-9 relative) is not taken, and the cell is not split again.
         """
         x0, y0, size = cell.square
         half = 0.5 * size

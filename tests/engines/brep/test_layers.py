@@ -6,12 +6,13 @@ import math
 
 import pytest
 from hypothesis import HealthCheck, given, settings
+from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut
 from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.layers import cut_stack, solid_layers, stack_solid, stack_volume
-from fusioncut.engines.brep.occ import MERGE_TOLERANCE, max_tolerance, volume
+from fusioncut.engines.brep.occ import MERGE_TOLERANCE, area, max_tolerance, volume
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import cylinder_region, swept_volume
 from fusioncut.model import ArcMove, BallEndMill, BoxStock, CLStatus, FlatEndMill, LinearMove, Toolpath
@@ -171,12 +172,6 @@ def test_an_arc_of_the_tool_radius_cuts_the_same_in_solids():
 
 # -- a cut that starts where the last one ended leaves the start disk out of its region ----------------
 
-def _area(face):
-    from fusioncut.engines.brep.occ import area
-
-    return area(face)
-
-
 @pytest.mark.parametrize("move", [
     LinearMove((10.0, 15.0, 0.0), (11.3, 15.4, 0.0)),
     ArcMove((10.0, 15.0, 0.0), (18.0, 15.0, 0.0), center=(14.0, 15.0, 0.0), clockwise=True),  # wide arc
@@ -186,14 +181,12 @@ def test_the_open_start_region_differs_from_the_swept_one_inside_the_start_disk_
     r = 3.0
     full, open_ = cylinder_region(r, move), cylinder_region(r, move, open_start=True)
     start_disk = cylinder_region(r, LinearMove((*move.start[:2], move.start[2] + 1.0), move.start))  # at z = 0 too
-    # stadium ⊇ open region ⊇ stadium − start disk: (full − open) lies in the start disk, and what
-    # the open region adds to the disk is the whole full region outside the disk
-    from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut
-
+    # full ⊇ open ⊇ full − start disk: the open region adds nothing, and what it leaves out lies in
+    # the start disk (and is not nothing)
     left_out = BRepAlgoAPI_Cut(full, open_).Shape()
-    assert _area(BRepAlgoAPI_Cut(open_, full).Shape()) == pytest.approx(0.0, abs=1e-9)
-    assert _area(BRepAlgoAPI_Cut(left_out, start_disk).Shape()) == pytest.approx(0.0, abs=1e-9)
-    assert _area(BRepAlgoAPI_Common(left_out, start_disk).Shape()) > 0.1 * math.pi * r * r  # not a no-op
+    assert area(BRepAlgoAPI_Cut(open_, full).Shape()) == pytest.approx(0.0, abs=1e-9)
+    assert area(BRepAlgoAPI_Cut(left_out, start_disk).Shape()) == pytest.approx(0.0, abs=1e-9)
+    assert area(BRepAlgoAPI_Common(left_out, start_disk).Shape()) > 0.1 * math.pi * r * r
 
 
 @pytest.mark.parametrize("layers", [True, False])
@@ -220,8 +213,8 @@ def test_a_cut_from_the_last_ones_end_disk_equals_the_full_sweep_on_a_trochoid(l
         assert a.status == b.status and a.removed_volume == pytest.approx(b.removed_volume, rel=1e-6, abs=1e-9)
         assert len(a.slices) == len(b.slices)
         for sa, sb in zip(a.slices, b.slices):
-            assert [a for i in sa.intervals for a in (i.entry, i.exit)] == pytest.approx(
-                [a for i in sb.intervals for a in (i.entry, i.exit)], abs=1e-3)
+            assert [x for i in sa.intervals for x in (i.entry, i.exit)] == pytest.approx(
+                [x for i in sb.intervals for x in (i.entry, i.exit)], abs=1e-3)
     assert opened == len(moves) - 1
     assert any(c.layers for c in open_engine.cells) == layers  # the path meant was the one tested
 
