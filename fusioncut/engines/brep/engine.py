@@ -90,7 +90,11 @@ class Cell:
     horizontally or vertically, a stack of 2.5D ``layers`` (:mod:`fusioncut.engines.brep.layers`);
     then the solid is built only when asked for (``shape``) and kept until the next cut.
     ``square`` is the column ``(x0, y0, size)`` of the grid the cell stands for (None: the whole
-    workpiece in one cell); a solid cell may be split into its four quarter squares.
+    workpiece in one cell); a solid cell may be split into its four quarter squares. ``swept`` maps
+    each cutting region the layers took (its ``CuttingRegion.key``) to the lowest tip height (mm)
+    it was taken from: above that the cell holds none of it, whatever came later, so a cut along
+    the very same path deeper down (the next depth level of an adaptive clearing, the next pass of
+    a contour) cuts only the layers below that height.
     """
 
     solid: TopoDS_Shape | None
@@ -99,6 +103,7 @@ class Cell:
     volume: float = 0.0
     layers: tuple[Layer, ...] | None = None
     square: tuple[float, float, float] | None = None
+    swept: dict[tuple, float] = field(default_factory=dict, repr=False)
 
     @property
     def empty(self) -> bool:
@@ -361,7 +366,8 @@ class BRepEngine:
                               reason=f"Boolean failed after retries: {exc}; shapes saved to {saved}"), []
         try:
             fuzzies = (self.options.fuzzy or 0.0, *self.options.fuzzy_retries)
-            layered = [(c, *cut_stack(c.layers, region.face, region.z_tip, region.z_top, fuzzies)) for c in flat]
+            layered = [(c, *cut_stack(c.layers, region.face, region.z_tip, region.z_top, fuzzies,
+                                      c.swept.get(region.key))) for c in flat]
         except RegionCutFailure as exc:
             log.error("CL %d (%s): layered Boolean failed: %s", index, move.source, exc)
             return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
@@ -370,6 +376,8 @@ class BRepEngine:
         timings["boolean"] = (t2 - t1) * 1e3
         if fp is not None and ceiling is not None:  # the cells are cut (below) or lose nothing: the sweep is gone
             ceiling.clear(fp)
+        for c in flat:
+            c.swept[region.key] = min(region.z_tip, c.swept.get(region.key, math.inf))
         results = [r for r in results if r[2] is not None]
         layered = [r for r in layered if r[3]]
         if not results and not layered:  # nothing removed: the tool only touches or misses the material
@@ -435,7 +443,7 @@ class BRepEngine:
         """
         last = "unknown"
         sweep_volume = None  # only needed once something is removed
-        first = self.options.fuzzy if self.options.fuzzy is not None else (1e-6 if self.options.cell_size else 0.0)
+        first = self._first_fuzzy
         threads = self.options.kernel_threads
         for fuzzy in (first, *self.options.fuzzy_retries):
             pf = intersections(ipw, sweep, fuzzy, threads)
@@ -476,8 +484,14 @@ class BRepEngine:
         z_tip, z_end = sorted((motion.start[2], motion.end[2]))
         if cyl is None or (z_end - z_tip > 1e-9 and math.dist(motion.start[:2], motion.end[:2]) > 1e-9):
             return None
-        face = cylinder_region(cyl[0], motion.translated((0.0, 0.0, -z_tip)), open_start)  # the region at z = 0
-        return None if face is None else CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1])
+        at_zero = motion.translated((0.0, 0.0, -z_tip))
+        face = cylinder_region(cyl[0], at_zero, open_start)  # the region at z = 0
+        if face is None:
+            return None
+        # everything cylinder_region builds the face from: equal keys, the same face
+        key = (cyl[0], open_start, type(at_zero).__name__, at_zero.start, at_zero.end,
+               getattr(at_zero, "center", None), getattr(at_zero, "clockwise", None), getattr(at_zero, "turns", None))
+        return CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1], key)
 
     def _maybe_merge(self, cell: Cell, level_flat_cut: bool) -> None:
         """After a solid cell was cut: merge its faces when they grew by ``merge_growth``; then,
@@ -489,7 +503,7 @@ class BRepEngine:
         merged = n > (1 + self.options.merge_growth) * cell.faces_at_merge
         if merged:
             try:
-                cell.set(unify(cell.shape, cell.volume), cell.volume)
+                cell.set(unify(cell.shape, cell.volume, gap=self._first_fuzzy), cell.volume)
             except Exception as exc:  # noqa: BLE001 - merging is an optimisation: keep the cell as it is
                 log.debug("face merge skipped: %s", exc)
             cell.faces_at_merge = count_faces(cell.shape) if cell.shape is not None else 0
@@ -503,6 +517,11 @@ class BRepEngine:
         if (cell.layers is None and level_flat_cut and cell.square is not None
                 and cell.square[2] > self._smallest_square):
             self._quarter(cell)
+
+    @property
+    def _first_fuzzy(self) -> float:
+        """The fuzzy value (mm) a 3D Boolean tries first."""
+        return self.options.fuzzy if self.options.fuzzy is not None else (1e-6 if self.options.cell_size else 0.0)
 
     @property
     def _smallest_square(self) -> float:
@@ -540,7 +559,8 @@ class BRepEngine:
         for (i, j), piece, piece_volume in zip(((0, 0), (1, 0), (0, 1), (1, 1)), pieces, volumes):
             if piece is None:
                 continue
-            quarter = Cell(None, None, count_faces(piece), square=(x0 + i * half, y0 + j * half, half))
+            quarter = Cell(None, None, count_faces(piece), square=(x0 + i * half, y0 + j * half, half),
+                           swept=dict(cell.swept))
             quarter.set(piece, piece_volume)
             if self.options.layers and self.options.sweep == "exact":
                 quarter.to_layers()

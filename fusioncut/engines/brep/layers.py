@@ -155,12 +155,14 @@ def stack_solid(layers: tuple[Layer, ...]) -> TopoDS_Shape:
 @dataclass(frozen=True)
 class CuttingRegion:
     """What a cylindrical tool's move takes from a stack: the planar region it covers (faces at
-    z = 0), the tool's radius, and the heights of its tip and of its top (mm)."""
+    z = 0), the tool's radius, and the heights of its tip and of its top (mm). ``key`` names the
+    region exactly (equal keys: the very same region), so a stack can remember what it lost."""
 
     face: TopoDS_Face
     radius: float
     z_tip: float
     z_top: float
+    key: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -175,12 +177,15 @@ class LayerCut:
 
 
 def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_top: float,
-              fuzzy_values: tuple[float, ...]) -> tuple[tuple[Layer, ...], float, list[LayerCut]]:
+              fuzzy_values: tuple[float, ...], clear_from: float | None = None,
+              ) -> tuple[tuple[Layer, ...], float, list[LayerCut]]:
     """The stack after removing the prism of ``region`` (z = 0) from ``z_tip`` to ``z_top`` (mm).
 
     Returns (new layers, removed volume in mm³, the cuts of the layers that lost material).
-    ``z_top`` must reach the stack's top (the regions stay nested). Raises
-    :class:`RegionCutFailure` when a 2D Boolean fails with every fuzzy value.
+    ``z_top`` must reach the stack's top (the regions stay nested). ``clear_from``: a height (mm)
+    above which this very region was already taken from the stack (material only ever goes, so
+    layers from there up lose nothing and are not cut). Raises :class:`RegionCutFailure` when a
+    2D Boolean fails with every fuzzy value.
     """
     if z_top < layers[-1].z_hi - Z_SNAP:
         raise ValueError("a layered cut must reach above the stack")
@@ -195,7 +200,8 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_t
     removed = 0.0
     untouched_above = False
     for la in layers:
-        if la.z_hi <= z_tip or untouched_above or not boxes_overlap(la.box, region_box):
+        if (la.z_hi <= z_tip or untouched_above or not boxes_overlap(la.box, region_box)
+                or (clear_from is not None and la.z_lo >= clear_from)):
             out.append(la)
             continue
         new_region, new_area, op = _cut_region(la.region, region, la.area, fuzzy_values)

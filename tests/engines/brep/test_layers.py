@@ -234,3 +234,65 @@ def test_a_cut_below_the_last_ones_end_keeps_its_whole_start_disk(layers):
     disk, stadium = math.pi * r * r, 15.0 * 2 * r + math.pi * r * r
     assert plunge.removed_volume == pytest.approx(disk * 1.0, rel=1e-9)
     assert slot.removed_volume == pytest.approx(stadium * 3.0 - disk * 1.0, rel=1e-9)
+
+
+def _counting_cuts(monkeypatch):
+    from fusioncut.engines.brep import layers as layers_module
+
+    calls = []
+    real = layers_module._cut_region
+
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(layers_module, "_cut_region", counted)
+    return calls
+
+
+def test_a_region_already_taken_from_the_layers_above_is_cut_from_those_below_only(monkeypatch):
+    """A slot 2 mm deep, then the same slot 5 mm deep: told the region went above -2 mm, the stack
+    cuts one layer instead of two, with the same result (closed form)."""
+    calls = _counting_cuts(monkeypatch)
+    r = 3.0
+    stadium = cylinder_region(r, LinearMove((10.0, 15.0, 0.0), (25.0, 15.0, 0.0)))
+    area = 15.0 * 2 * r + math.pi * r * r
+    first, _, _ = cut_stack(box_layers(), stadium, -2.0, 20.0, FUZZY)
+    results = {}
+    for clear_from in (None, -2.0):
+        calls.clear()
+        results[clear_from] = cut_stack(first, stadium, -5.0, 20.0, FUZZY, clear_from)
+        assert len(calls) == (2 if clear_from is None else 1)
+    for layers, removed, cuts in results.values():
+        assert removed == pytest.approx(area * 3.0, rel=1e-9)
+        assert [(la.z_lo, la.z_hi) for la in layers] == [(-10.0, -5.0), (-5.0, 0.0)]
+        assert [(c.z_lo, c.z_hi) for c in cuts] == [(-5.0, -2.0)]
+
+
+def test_a_contour_retraced_deeper_cuts_fewer_layers_and_the_same_material(monkeypatch):
+    """A closed contour at -2 mm, then the same path at -4 and -6 mm (as contour passes come): the
+    layered engine skips the layers the same path already cleared, and its results equal the
+    all-solid engine's CL by CL."""
+    path = [(5.0, 5.0), (30.0, 5.0), (30.0, 22.0), (5.0, 22.0), (5.0, 5.0)]
+    moves = []
+    for z in (-2.0, -4.0, -6.0):
+        moves.append(LinearMove((5.0, 5.0, 5.0), (5.0, 5.0, z), tool=1, feed=300.0))
+        moves += [LinearMove((*a, z), (*b, z), tool=1, feed=600.0) for a, b in zip(path, path[1:])]
+    program = Toolpath(tuple(moves), {1: FlatEndMill(6.0, 15.0, number=1)})
+    calls = _counting_cuts(monkeypatch)
+    runs, counts = {}, {}
+    from fusioncut.engines.brep import engine as engine_module
+
+    real_cut_stack = engine_module.cut_stack
+    for mode in ("remembered", "forgotten", "solid"):
+        if mode == "forgotten":  # the same engine, told nothing about earlier regions
+            monkeypatch.setattr(engine_module, "cut_stack", lambda *a: real_cut_stack(*a[:5]))
+        calls.clear()
+        engine = BRepEngine(EngineOptions(max_segment_length=4.0, cell_size=15.0, layers=mode != "solid"))
+        runs[mode] = list(engine.run(program, BLOCK))
+        counts[mode] = len(calls)
+        assert abs(engine.stock_volume - engine.ipw_volume - engine.removed_total) <= 1e-9 * engine.stock_volume
+    assert counts["solid"] == 0 and 0 < counts["remembered"] < counts["forgotten"]
+    for a, b, c in zip(runs["remembered"], runs["forgotten"], runs["solid"]):
+        _same(a, b)
+        _same(a, c)

@@ -135,3 +135,36 @@ def test_unify_leaves_its_argument_alone():
         unify(ipw)
         assert count_faces(ipw) == faces_before
         assert volume(ipw) == pytest.approx(volume_before, rel=1e-12)
+
+
+def _ball_rows_before_any_merge():
+    """A cell after two ball-end-mill rows of 1 mm CLs, cut with the cells' 1e-6 mm fuzzy value
+    and never merged (as it stood before its first merge on the benchmark's finish)."""
+    from fusioncut.model import BallEndMill, BoxStock, LinearMove, Toolpath
+
+    block = BoxStock((0.0, 0.0, -10.0), (20.0, 20.0, 0.0))
+
+    moves = []
+    for k, y in enumerate((8.0, 9.5)):
+        z = -0.3 - 0.1 * k
+        moves.append(LinearMove((0.0, y, 5.0), (0.0, y, z), tool=1, feed=500.0))
+        moves += [LinearMove((float(x), y, z), (float(x + 1), y, z), tool=1, feed=500.0) for x in range(20)]
+    program = Toolpath(tuple(moves), {1: BallEndMill(6.0, 20.0, number=1)})
+    engine = BRepEngine(EngineOptions(cell_size=20.0, merge_growth=1e9))
+    assert all(m.status.value != "failed" for m in engine.run(program, block))
+    (cell,) = [c for c in engine.cells if not c.empty]
+    return cell.shape
+
+
+def test_unify_takes_the_fuzzy_gap_of_the_booleans_that_built_the_shape():
+    """Each CL's cylinder patch comes ~2e-6 mm longer than its 1 mm (the fuzzy Booleans glued them
+    overlapping): the merge into one face per row moves the volume by more than 1e-9 of it, so
+    without the gap it is refused, and the cell keeps a face per CL."""
+    shape = _ball_rows_before_any_merge()
+    n = count_faces(shape)
+    assert n > 40
+    assert count_faces(unify(shape, volume(shape))) == n
+    merged = unify(shape, volume(shape), gap=1e-6)
+    assert count_faces(merged) <= 10
+    assert BRepCheck_Analyzer(merged).IsValid()
+    assert abs(volume(merged) - volume(shape)) <= 2e-6 * occ.area(shape)

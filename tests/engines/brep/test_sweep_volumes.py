@@ -156,3 +156,28 @@ def test_lines_and_arcs_are_sewn_without_a_boolean(name, monkeypatch):
         assert volume(sv.shape) == pytest.approx(volume(tool_solid(tool)) + travel * section, rel=REL)
     if name == "ball":
         assert count_faces(line.shape) == 8
+
+
+@pytest.mark.parametrize("move", [LinearMove((3.0, 4.0, -2.0), (4.0, 4.0, -2.0)),
+                                  LinearMove((3.0, 4.0, -2.0), (3.0, 4.0, -6.0)),
+                                  ArcMove((3.0, 4.0, -2.0), (7.0, 8.0, -2.0), center=(7.0, 4.0, -2.0))])
+def test_a_motion_repeated_elsewhere_gets_its_sweep_moved_and_unshared(move):
+    """Non-cylindrical tools' sweeps are built once per relative motion and copied into place: the
+    copy is the sweep built where the motion is (volume, box), and shares no face with the sweep
+    of the same motion elsewhere."""
+    from fusioncut.engines.brep.occ import bounding_box, faces
+    from fusioncut.engines.brep.sweep import _exact_sweep
+
+    tool = BallEndMill(6.0, 20.0)
+    here = swept_volume(tool, move, seam=1.0)
+    there = swept_volume(tool, move.translated((10.0, -5.0, 1.0)), seam=1.0)
+    built = _exact_sweep(tool, move, 1.0, None, False)
+    assert here.method == there.method == "exact"
+    assert volume(here.shape) == pytest.approx(volume(built), rel=1e-9)
+    for a, b in zip(bounding_box(here.shape), bounding_box(built)):
+        assert a == pytest.approx(b, abs=1e-7)
+    for a, b in zip(bounding_box(there.shape), bounding_box(here.shape)):
+        assert [u - v for u, v in zip(a, b)] == pytest.approx([10.0, -5.0, 1.0], abs=1e-7)
+    assert volume(there.shape) == pytest.approx(volume(here.shape), rel=1e-9)
+    theirs = list(faces(there.shape))
+    assert not any(f.IsPartner(g) for f in faces(here.shape) for g in theirs)
