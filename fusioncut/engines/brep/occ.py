@@ -279,6 +279,7 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
     n_faces = count_faces(shape)
     tolerance_limit = max(MERGE_TOLERANCE, 10.0 * max_tolerance(shape))
     kept = ShapeMap()  # faces of ``shape`` whose edges must stay
+    slack = None  # mm³ the volume may move by (the gap), measured once a merge is to be judged
     for _ in range(max_rounds):
         copy = BRepBuilderAPI_Copy(shape)
         u = ShapeUpgrade_UnifySameDomain(copy.Shape(), True, True, False)
@@ -293,7 +294,8 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
         # left alone cancel exactly, unlike two whole volumes (each good to ~1e-7 of the workpiece)
         change = _enclosed_volume([*faces(merged), *(f.Reversed() for f in faces(shape))])
         reference = abs(shape_volume if shape_volume is not None else volume(shape))
-        slack = 2.0 * gap * area(shape) if gap > 0.0 else 0.0
+        if slack is None:
+            slack = 2.0 * gap * area(shape) if gap > 0.0 else 0.0
         sound = abs(change) <= 1e-9 * reference + 1e-6 + slack
         # the whole shape's largest tolerance is one C++ pass; the edges are listed only past the limit
         loose = _loose_edges(merged, tolerance_limit) if max_tolerance(merged) > tolerance_limit else []
