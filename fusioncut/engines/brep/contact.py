@@ -192,10 +192,16 @@ class ContactFace:
 
 
 def find_contact_faces(candidates, tool: MillingTool, tip: tuple[float, float, float],
-                       tol: float = 1e-6) -> list[ContactFace]:
+                       tol: float = 1e-6, areas: list[float] | None = None) -> list[ContactFace]:
+    """The candidate faces that lie on the tool at ``tip``, with their areas (mm²) and heights.
+
+    ``areas``: the areas of the first candidates when the caller knows them exactly (the layers'
+    patches); the others are integrated.
+    """
     tsurfs = tool_surfaces(tool)
+    known = areas or []
     out = []
-    for face in candidates:
+    for k, face in enumerate(candidates):
         surf = BRepAdaptor_Surface(face, False)
         ts = _match(face, surf, tip, tsurfs, tol)
         if ts is None:
@@ -209,7 +215,8 @@ def find_contact_faces(candidates, tool: MillingTool, tip: tuple[float, float, f
             # one face of a cylindrical sweep runs over flute and shank: split its area by zone
             out.extend(_split_by_zone(face, ts, tsurfs, tip, lo, hi, tol))
             continue
-        out.append(ContactFace(face, ts, area(face), (max(lo, ts.z0), min(hi, ts.z1)), _corner_heights(face)))
+        face_area = known[k] if k < len(known) else area(face)
+        out.append(ContactFace(face, ts, face_area, (max(lo, ts.z0), min(hi, ts.z1)), _corner_heights(face)))
     return out
 
 

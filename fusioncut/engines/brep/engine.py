@@ -392,8 +392,9 @@ class BRepEngine:
                              method=method, timings=timings)
         contacts = []
         try:
-            candidates = [p for _, _, _, cuts in layered
-                          for p in contact_patches(cuts, region.face, move.end[:2], region.radius)]
+            patches = [p for _, _, _, cuts in layered
+                       for p in contact_patches(cuts, region.face, move.end[:2], region.radius)]
+            candidates, areas = [f for f, _ in patches], [a for _, a in patches]
             if results:
                 sweep_faces = list(faces(sweep.shape))
                 own = face_map(sweep.shape)
@@ -405,7 +406,7 @@ class BRepEngine:
                     found = [TopoDS.Face(s) for s in items(images)] if images.Size() else [] if cut.IsDeleted(f) else [f]
                     candidates.extend(g for g in found if (kept is None or kept.Contains(g))
                                       and not _on_old_boundary(g, origins, own))
-            contacts = find_contact_faces(candidates, tool, move.end)
+            contacts = find_contact_faces(candidates, tool, move.end, areas=areas)
             flute = [c for c in contacts if c.surface.zone == "flute"]
             outcome.flute_area = sum(c.area for c in flute)
             outcome.shank_area = sum(c.area for c in contacts if c.surface.zone == "shank")
