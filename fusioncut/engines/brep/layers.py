@@ -31,13 +31,14 @@ from OCP.BRepPrimAPI import BRepPrimAPI_MakePrism
 from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Cylinder, GeomAbs_Plane
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 from OCP.gp import gp_Ax3, gp_Cylinder, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
-from OCP.TopAbs import TopAbs_EDGE, TopAbs_REVERSED
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED
 from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 
 from fusioncut.engines.brep.occ import (
-    area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, items, unify, volume,
+    area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, items, split_pieces, unify,
+    volume,
 )
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -167,8 +168,8 @@ class CuttingRegion:
 
 @dataclass(frozen=True)
 class LayerCut:
-    """One layer cut by a region: the layer after the cut (None when all of it went) and the Cut
-    with its history (for the contact edges)."""
+    """One layer cut by a region: the layer after the cut (None when all of it went) and the split
+    of its region by the cutting region, with its history (for the contact edges)."""
 
     z_lo: float
     z_hi: float
@@ -236,35 +237,18 @@ def _joined(layers: list[Layer]) -> tuple[Layer, ...]:
 def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_values: tuple[float, ...]):
     """(the new region, its area in mm², the split with its history), or Nones when nothing is lost.
 
-    One General Fuse splits both regions where they meet; a piece of ``old`` that is also a piece
-    of ``tool`` (the split shares coincident pieces) is lost, the others are the new region. That
-    is what a Common and a Cut on the same intersections select, at the cost of one split instead
-    of two (measured on the benchmark's trochoids: 1.1 ms less per layer cut). The pieces must
-    tile ``old``: lost + new area = old area (1e-6 mm² + 1e-6 relative), or the split is retried
-    with the next fuzzy value.
+    One General Fuse (:func:`~fusioncut.engines.brep.occ.split_pieces`) gives the pieces of ``old``
+    the tool takes and those it leaves; they must tile ``old`` (lost + new area = old area, 1e-6 mm²
+    + 1e-6 relative), or the split is retried with the next fuzzy value.
     """
     last = "unknown"
     for fuzzy in fuzzy_values:
         pf = intersections(old, tool, fuzzy)
-        if pf is None:
-            last = f"2D intersection reported errors (fuzzy={fuzzy})"
+        split = None if pf is None else split_pieces(old, tool, pf, TopAbs_FACE)
+        if split is None:
+            last = f"2D intersection or split reported errors (fuzzy={fuzzy})"
             continue
-        split = BOPAlgo_Builder()
-        split.AddArgument(old)
-        split.AddArgument(tool)
-        split.SetCheckInverted(False)
-        split.PerformWithFiller(pf)
-        if split.HasErrors():
-            last = f"2D split failed (fuzzy={fuzzy})"
-            continue
-        in_tool = ShapeMap()
-        for f in faces(tool):
-            for g in _pieces(split, f):
-                in_tool.Add(g)
-        lost_pieces, kept_pieces = [], []
-        for f in faces(old):
-            for g in _pieces(split, f):
-                (lost_pieces if in_tool.Contains(g) else kept_pieces).append(g)
+        op, lost_pieces, kept_pieces = split
         lost = area(compound(lost_pieces)) if lost_pieces else 0.0
         if lost <= 1e-12 * max(1.0, old_area):
             return None, None, None
@@ -272,16 +256,10 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
         new_area = area(new) if kept_pieces else 0.0
         mismatch = old_area - new_area - lost
         if abs(mismatch) > 1e-6 + 1e-6 * old_area:
-            last = f"2D split pieces and region disagree by {mismatch:.4g} mm² (fuzzy={fuzzy})"
+            last = f"2D pieces and region disagree by {mismatch:.4g} mm² (fuzzy={fuzzy})"
             continue
-        return new, new_area, split
+        return new, new_area, op
     raise RegionCutFailure(last)
-
-
-def _pieces(split: BOPAlgo_Builder, face: TopoDS_Shape) -> list[TopoDS_Shape]:
-    """The pieces a General Fuse split ``face`` into (the face itself when it was not split)."""
-    images = split.Modified(face)
-    return items(images) if images.Size() else [face]
 
 
 def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[float, float], radius: float,
