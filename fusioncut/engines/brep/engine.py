@@ -53,9 +53,9 @@ from fusioncut.engines.brep.layers import (
     stack_volume,
 )
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, items,
-    quarters, read_binary_brep, solids, split_into_cells, split_pieces, unify, volume, volume_change, without_slivers,
-    write_binary_brep, write_brep,
+    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, items, pieces,
+    quarters, read_binary_brep, solids, split_into_cells, split_pieces, unify, volume, volume_change,
+    without_slivers, write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import cylinder_region, cylinder_tool, swept_volume
@@ -402,9 +402,8 @@ class BRepEngine:
                 kept = face_map(new_shape)  # the split also holds the sweep's pieces out of the IPW
                 origins = split.Origins()
                 for f in sweep_faces:
-                    images = split.Modified(f)
-                    found = [TopoDS.Face(s) for s in items(images)] if images.Size() else [f]
-                    candidates.extend(g for g in found if kept.Contains(g) and not _on_old_boundary(g, origins, own))
+                    candidates.extend(g for g in map(TopoDS.Face, pieces(split, f))
+                                      if kept.Contains(g) and not _on_old_boundary(g, origins, own))
             contacts = find_contact_faces(candidates, tool, move.end, areas=areas)
             flute = [c for c in contacts if c.surface.zone == "flute"]
             outcome.flute_area = sum(c.area for c in flute)

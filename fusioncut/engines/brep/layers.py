@@ -37,8 +37,8 @@ from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 
 from fusioncut.engines.brep.occ import (
-    area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, items, split_pieces, unify,
-    volume,
+    area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, items, pieces,
+    split_pieces, unify, volume,
 )
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -281,9 +281,7 @@ def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[fl
         TopExp.MapShapes_s(c.new.region, TopAbs_EDGE, kept)
         origins = c.op.Origins()
         for e in on_circle:
-            images = c.op.Modified(e)
-            found = [TopoDS.Edge(s) for s in items(images)] if images.Size() else [] if c.op.IsDeleted(e) else [e]
-            for g in found:
+            for g in map(TopoDS.Edge, pieces(c.op, e)):
                 if not kept.Contains(g):
                     continue
                 if origins.IsBound(g) and any(not own.Contains(s) for s in items(origins.Find(g))):

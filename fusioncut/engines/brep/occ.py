@@ -234,17 +234,18 @@ def split_pieces(a: TopoDS_Shape, b: TopoDS_Shape, pf, kind: TopAbs_ShapeEnum, p
         return None
     in_b = ShapeMap()
     for s in _explore(b, kind):
-        for piece in _pieces(split, s):
+        for piece in pieces(split, s):
             in_b.Add(piece)
     inside, outside = [], []
     for s in _explore(a, kind):
-        for piece in _pieces(split, s):
+        for piece in pieces(split, s):
             (inside if in_b.Contains(piece) else outside).append(piece)
     return split, inside, outside
 
 
-def _pieces(split, shape: TopoDS_Shape) -> list[TopoDS_Shape]:
-    """The pieces a General Fuse split ``shape`` into (the shape itself when it was not split)."""
+def pieces(split, shape: TopoDS_Shape) -> list[TopoDS_Shape]:
+    """The pieces a General Fuse split ``shape`` into (the shape itself when it was not split: a
+    split deletes nothing)."""
     images = split.Modified(shape)
     return items(images) if images.Size() else [shape]
 

@@ -39,7 +39,7 @@ from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepBuilderAPI import (
     BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeSolid, BRepBuilderAPI_MakeWire,
-    BRepBuilderAPI_Sewing,
+    BRepBuilderAPI_Sewing, BRepBuilderAPI_Transform,
 )
 from OCP.BRepLib import BRepLib
 from OCP.GC import GC_MakeArcOfCircle
@@ -51,8 +51,9 @@ from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 
 from fusioncut.engines.brep.occ import (
-    faces, fuse_all, moved_copy, placement, planar_face, pnt, solids, unify, wire_from_points,
+    faces, fuse_all, moved_copy, placement, planar_face, pnt, solids, unify, volume, wire_from_points,
 )
+from fusioncut.engines.ceiling import tool_radii
 from fusioncut.errors import SourceLocation
 from fusioncut.model.moves import ArcMove, ArcPlane, Move
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProfile
@@ -120,8 +121,13 @@ def tool_solid(tool: MillingTool) -> TopoDS_Shape:
 
 
 def placed_tool(tool: MillingTool, tip: Vec3, seam_angle: float = 0.0) -> TopoDS_Shape:
-    """The tool with its tip at ``tip`` and its seam at machine angle ``seam_angle`` (rad)."""
-    return tool_solid(tool).Moved(placement(tip, seam_angle))
+    """The tool with its tip at ``tip`` and its seam at machine angle ``seam_angle`` (rad).
+
+    A copy with sub-shapes of its own: a Boolean may raise the tolerances of its arguments'
+    sub-shapes in place, and a tool solid shared by every placement carried that from one sweep
+    into the next (the same sampled sweep came out empty twice, then right).
+    """
+    return BRepBuilderAPI_Transform(tool_solid(tool), placement(tip, seam_angle).Transformation(), True).Shape()
 
 
 def _unit(v: Vec3) -> Vec3:
@@ -436,14 +442,59 @@ def _relative(move: Move) -> Move:
 
 @lru_cache(maxsize=256)
 def _sweep_at_origin(tool: MillingTool, move: Move, seam: float) -> TopoDS_Shape | None:
-    return _exact_sweep(tool, move, seam, None, False)
+    """The exact sweep of ``move`` (starting at the origin), or None when there is none or the
+    kernel built one smaller than the tool itself (a sweep holds the tool at its start)."""
+    shape = _exact_sweep(tool, move, seam, None, False)
+    return shape if shape is not None and _holds_a_tool(shape, tool) else None
+
+
+def _holds_a_tool(shape: TopoDS_Shape, tool: MillingTool) -> bool:
+    """Whether ``shape`` is one solid of at least the tool's volume (1e-9 relative), as every sweep is."""
+    return len(solids(shape)) == 1 and volume(shape) >= volume(tool_solid(tool)) * (1 - 1e-9)
 
 
 def sampled_sweep(tool: MillingTool, move: Move, seam: float = 0.0, spacing: float | None = None) -> TopoDS_Shape:
-    """Union of tool copies along the move every ``spacing`` mm (default R/4): the published method."""
+    """Union of tool copies along the move every ``spacing`` mm (default R/4): the published method.
+
+    Copies whose sides nearly coincide are where the kernel's fuse goes wrong without an error (a
+    ramp 2.5 mm up and 1e-6 mm sideways fused into 3e-5 mm³ with fuzzy 0, 5 solids with 1e-6, 197
+    mm³ with 1e-5): an axis along which the copies spread less than ``_SNAP`` mm keeps them all
+    at the start's coordinate (coincident sides fuse right; the union is that much smaller, far
+    below the copies' own scallops). The union must then be one solid between one tool's volume
+    and, on a line, the closed form of the exact sweep's (else fuzzier fuses are tried; then it fails).
+    """
     spacing = spacing or tool.radius / 4
     n = max(1, math.ceil(move.length / spacing - 1e-9))
-    return fuse_all([placed_tool(tool, move.point_at(k / n), seam) for k in range(n + 1)])
+    points = [move.point_at(k / n) for k in range(n + 1)]
+    for axis in range(3):
+        values = [p[axis] for p in points]
+        if max(values) - min(values) < _SNAP:
+            points = [(*p[:axis], move.start[axis], *p[axis + 1:]) for p in points]
+    least = volume(tool_solid(tool)) * (1 - 1e-9)
+    most = _line_sweep_volume_bound(tool, move) if not isinstance(move, ArcMove) else (n + 1) * least
+    for fuzzy in (0.0, 1e-5, 1e-4, 1e-3):
+        shape = fuse_all([placed_tool(tool, p, seam) for p in points], fuzzy=fuzzy)
+        if len(solids(shape)) == 1 and least <= volume(shape) <= most:
+            return shape
+    raise RuntimeError(f"the union of {n + 1} tool copies along the move is not one solid of a sweep's volume")
+
+
+_SNAP = 1e-4  # mm
+
+
+def _line_sweep_volume_bound(tool: MillingTool, move: Move) -> float:
+    """An upper bound (mm³) of the volume a tool sweeps along a line: the tool plus the line's length
+    times the shadow, across the line, of the cylinder of the tool's largest radius and its length
+    (πR²|cos θ| + 2RL|sin θ|, θ from the tool axis), with 1e-6 relative to spare."""
+    d = [e - s for s, e in zip(move.start, move.end)]
+    length = math.sqrt(sum(c * c for c in d))
+    if length == 0.0:
+        return volume(tool_solid(tool)) * (1 + 1e-6)
+    cos = abs(d[2]) / length
+    sin = math.sqrt(max(0.0, 1.0 - cos * cos))
+    r, _, height = tool_radii(tool)
+    shadow = math.pi * r * r * cos + 2.0 * r * height * sin
+    return (volume(tool_solid(tool)) + length * shadow) * (1 + 1e-6)
 
 
 def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: float = 0.0,

@@ -200,7 +200,6 @@ def test_a_cut_from_the_last_ones_end_disk_equals_the_full_sweep_on_a_trochoid(l
         t = 2 * math.pi * k / 20
         pts.append((5.0 + 0.12 * k + 2.0 * math.cos(t) - 2.0, 15.0 + 2.0 * math.sin(t), -3.0))
     moves = tuple(LinearMove(a, b, feed=600.0, tool=1) for a, b in zip(pts, pts[1:]))
-    tp = Toolpath(moves, {1: tool})
     open_engine, closed = BRepEngine(EngineOptions(layers=layers)), BRepEngine(EngineOptions(layers=layers))
     open_engine.start(BLOCK)
     closed.start(BLOCK)

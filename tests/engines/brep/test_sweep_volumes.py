@@ -181,3 +181,18 @@ def test_a_motion_repeated_elsewhere_gets_its_sweep_moved_and_unshared(move):
     assert volume(there.shape) == pytest.approx(volume(here.shape), rel=1e-9)
     theirs = list(faces(there.shape))
     assert not any(f.IsPartner(g) for f in faces(here.shape) for g in theirs)
+
+
+def test_tool_copies_whose_sides_nearly_coincide_still_make_the_whole_sweep():
+    """A ramp 2.5 mm up and 1e-6 mm sideways (a case hypothesis found): the published method's tool
+    copies have nearly coincident side faces, which the kernel fused into 3e-5 mm³ without an
+    error, and a tool solid shared by the copies made the next call differ. A near-vertical union
+    of copies is the tool stretched up (closed form), on every call."""
+    tool = BullNoseEndMill(10, 20, corner_radius=2)
+    dz = 2.5133576507673734
+    move = LinearMove((0.0, -12.351750246432578, 0.0), (0.0, -12.351749246432579, dz))
+    stretched = volume(tool_solid(tool)) + math.pi * 5.0 ** 2 * dz
+    for _ in range(2):
+        sweep = swept_volume(tool, move)
+        assert sweep.method == "sampled"
+        assert volume(sweep.shape) == pytest.approx(stretched, rel=1e-6)
