@@ -484,8 +484,10 @@ _SNAP = 1e-4  # mm
 
 def _line_sweep_volume_bound(tool: MillingTool, move: Move) -> float:
     """An upper bound (mm³) of the volume a tool sweeps along a line: the tool plus the line's length
-    times the shadow, across the line, of the cylinder of the tool's largest radius and its length
-    (πR²|cos θ| + 2RL|sin θ|, θ from the tool axis), with 1e-6 relative to spare."""
+    times twice the shadow, across the line, of the cylinder of the tool's largest radius and its
+    length (πR²|cos θ| + 2RL|sin θ|, θ from the tool axis), with 1e-6 relative to spare. Once the
+    shadow would do for a convex tool; twice, for a shank wider than the flutes, whose body a line
+    may cross twice."""
     d = [e - s for s, e in zip(move.start, move.end)]
     length = math.sqrt(sum(c * c for c in d))
     if length == 0.0:
@@ -494,7 +496,7 @@ def _line_sweep_volume_bound(tool: MillingTool, move: Move) -> float:
     sin = math.sqrt(max(0.0, 1.0 - cos * cos))
     r, _, height = tool_radii(tool)
     shadow = math.pi * r * r * cos + 2.0 * r * height * sin
-    return (volume(tool_solid(tool)) + length * shadow) * (1 + 1e-6)
+    return (volume(tool_solid(tool)) + 2.0 * length * shadow) * (1 + 1e-6)
 
 
 def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: float = 0.0,
