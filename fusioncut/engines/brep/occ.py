@@ -123,7 +123,7 @@ def without_slivers(old: TopoDS_Shape, new: TopoDS_Shape, max_faces: int = 64,
 
     Near the floors a helical entry leaves (steps 0.01 mm apart), OCCT's Cut returned, besides the
     right workpiece, a 5-face "solid" of zero volume whose shell is not connected. Its volume is
-    right, so the Common/Cut check passes, but later Booleans on that workpiece went wrong by
+    right, so the removed-against-change check passes, but later Booleans on that workpiece went wrong by
     thousands of mm³. Only solids that appeared in this Boolean and have at most ``max_faces``
     faces are measured (cheap); one enclosing at most ``max_volume`` mm³ is dropped.
     """
