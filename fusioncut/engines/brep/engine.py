@@ -53,8 +53,8 @@ from fusioncut.engines.brep.layers import (
     stack_volume,
 )
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, items, pieces,
-    quarters, read_binary_brep, solids, split_into_cells, split_pieces, unify, volume, volume_change,
+    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, on_old_boundary,
+    pieces, quarters, read_binary_brep, solids, split_into_cells, split_pieces, unify, volume, volume_change,
     without_slivers, write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
@@ -403,7 +403,7 @@ class BRepEngine:
                 origins = split.Origins()
                 for f in sweep_faces:
                     candidates.extend(g for g in map(TopoDS.Face, pieces(split, f))
-                                      if kept.Contains(g) and not _on_old_boundary(g, origins, own))
+                                      if kept.Contains(g) and not on_old_boundary(g, origins, own))
             contacts = find_contact_faces(candidates, tool, move.end, areas=areas)
             flute = [c for c in contacts if c.surface.zone == "flute"]
             outcome.flute_area = sum(c.area for c in flute)
@@ -588,18 +588,6 @@ def _reach_box(fp, motion: Move, tool: MillingTool) -> tuple[tuple[float, float,
     x0, y0, x1, y1 = fp.box(fp.reach + 1e-6)
     top = max(motion.start[2], motion.end[2]) + tool_radii(tool)[2]
     return (x0, y0, fp.z_low - 1e-6), (x1, y1, top + 1e-6)
-
-
-def _on_old_boundary(face, origins, sweep_faces) -> bool:
-    """Whether a face of the new IPW also comes from a face the IPW already had (the kernel merged
-    the two coincident faces into one).
-
-    There the tool only grazes a wall left by an earlier cut: it removes nothing, the chip is zero
-    thick, so it is no engagement. Seen on the benchmark's second depth level, which retraces the
-    first level's trochoids: the tool at 4-7 mm above its tip lay on the first level's walls and
-    reported 5-15° arcs there, 32 of 821 adaptive CLs, which force models would have read as cutting.
-    """
-    return origins.IsBound(face) and any(not sweep_faces.Contains(s) for s in items(origins.Find(face)))
 
 
 def cl_sequence(toolpath: Toolpath, options: EngineOptions, default_tool: MillingTool | None = None,

@@ -37,8 +37,8 @@ from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 
 from fusioncut.engines.brep.occ import (
-    area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, items, pieces,
-    split_pieces, unify, volume,
+    area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, on_old_boundary,
+    pieces, split_pieces, unify, volume,
 )
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -273,6 +273,7 @@ def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[fl
     own = ShapeMap()
     TopExp.MapShapes_s(region, TopAbs_EDGE, own)
     on_circle = [e for e in edges(region) if _on_circle(e, center, radius, tol)]
+    ax = gp_Ax3(gp_Pnt(center[0], center[1], 0.0), gp_Dir(0.0, 0.0, 1.0), gp_Dir(1.0, 0.0, 0.0))
     patches = []
     for c in cuts:
         if c.new is None:
@@ -284,10 +285,9 @@ def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[fl
             for g in map(TopoDS.Edge, pieces(c.op, e)):
                 if not kept.Contains(g):
                     continue
-                if origins.IsBound(g) and any(not own.Contains(s) for s in items(origins.Find(g))):
+                if on_old_boundary(g, origins, own):
                     continue
                 a0, a1 = _arc_angles(g, center)
-                ax = gp_Ax3(gp_Pnt(center[0], center[1], 0.0), gp_Dir(0.0, 0.0, 1.0), gp_Dir(1.0, 0.0, 0.0))
                 patches.append((BRepBuilderAPI_MakeFace(gp_Cylinder(ax, radius), a0, a1, c.z_lo, c.z_hi).Face(),
                                 radius * (a1 - a0) * (c.z_hi - c.z_lo)))
     return patches

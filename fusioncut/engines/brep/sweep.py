@@ -39,7 +39,7 @@ from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepBuilderAPI import (
     BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeSolid, BRepBuilderAPI_MakeWire,
-    BRepBuilderAPI_Sewing, BRepBuilderAPI_Transform,
+    BRepBuilderAPI_Sewing,
 )
 from OCP.BRepLib import BRepLib
 from OCP.GC import GC_MakeArcOfCircle
@@ -121,13 +121,15 @@ def tool_solid(tool: MillingTool) -> TopoDS_Shape:
 
 
 def placed_tool(tool: MillingTool, tip: Vec3, seam_angle: float = 0.0) -> TopoDS_Shape:
-    """The tool with its tip at ``tip`` and its seam at machine angle ``seam_angle`` (rad).
+    """A copy (:func:`~fusioncut.engines.brep.occ.moved_copy`) of the tool with its tip at ``tip``
+    and its seam at machine angle ``seam_angle`` (rad)."""
+    return moved_copy(tool_solid(tool), placement(tip, seam_angle))
 
-    A copy with sub-shapes of its own: a Boolean may raise the tolerances of its arguments'
-    sub-shapes in place, and a tool solid shared by every placement carried that from one sweep
-    into the next (the same sampled sweep came out empty twice, then right).
-    """
-    return BRepBuilderAPI_Transform(tool_solid(tool), placement(tip, seam_angle).Transformation(), True).Shape()
+
+@lru_cache(maxsize=64)
+def tool_volume(tool: MillingTool) -> float:
+    """The tool's volume (mm³)."""
+    return volume(tool_solid(tool))
 
 
 def _unit(v: Vec3) -> Vec3:
@@ -450,7 +452,7 @@ def _sweep_at_origin(tool: MillingTool, move: Move, seam: float) -> TopoDS_Shape
 
 def _holds_a_tool(shape: TopoDS_Shape, tool: MillingTool) -> bool:
     """Whether ``shape`` is one solid of at least the tool's volume (1e-9 relative), as every sweep is."""
-    return len(solids(shape)) == 1 and volume(shape) >= volume(tool_solid(tool)) * (1 - 1e-9)
+    return len(solids(shape)) == 1 and volume(shape) >= tool_volume(tool) * (1 - 1e-9)
 
 
 def sampled_sweep(tool: MillingTool, move: Move, seam: float = 0.0, spacing: float | None = None) -> TopoDS_Shape:
@@ -470,7 +472,7 @@ def sampled_sweep(tool: MillingTool, move: Move, seam: float = 0.0, spacing: flo
         values = [p[axis] for p in points]
         if max(values) - min(values) < _SNAP:
             points = [(*p[:axis], move.start[axis], *p[axis + 1:]) for p in points]
-    least = volume(tool_solid(tool)) * (1 - 1e-9)
+    least = tool_volume(tool) * (1 - 1e-9)
     most = _line_sweep_volume_bound(tool, move) if not isinstance(move, ArcMove) else (n + 1) * least
     for fuzzy in (0.0, 1e-5, 1e-4, 1e-3):
         shape = fuse_all([placed_tool(tool, p, seam) for p in points], fuzzy=fuzzy)
@@ -491,12 +493,12 @@ def _line_sweep_volume_bound(tool: MillingTool, move: Move) -> float:
     d = [e - s for s, e in zip(move.start, move.end)]
     length = math.sqrt(sum(c * c for c in d))
     if length == 0.0:
-        return volume(tool_solid(tool)) * (1 + 1e-6)
+        return tool_volume(tool) * (1 + 1e-6)
     cos = abs(d[2]) / length
     sin = math.sqrt(max(0.0, 1.0 - cos * cos))
     r, _, height = tool_radii(tool)
     shadow = math.pi * r * r * cos + 2.0 * r * height * sin
-    return (volume(tool_solid(tool)) + 2.0 * length * shadow) * (1 + 1e-6)
+    return (tool_volume(tool) + 2.0 * length * shadow) * (1 + 1e-6)
 
 
 def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: float = 0.0,
@@ -522,10 +524,9 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
     else:
         # other tools' constructions cost 5-15 ms (a ball end mill's line is sewn from three
         # revolved and swept pieces), and a finishing pass repeats the same motion at every CL:
-        # built once at the origin, each CL gets a translated copy (~0.3 ms; a copy, so that no
-        # Boolean shares, or retouches the tolerances of, another CL's sweep)
+        # built once at the origin, each CL gets a translated copy (~0.3 ms)
         origin = _sweep_at_origin(tool, _relative(move), seam)
-        shape = None if origin is None else moved_copy(origin, p0)
+        shape = None if origin is None else moved_copy(origin, placement(p0, 0.0))
     if shape is None or not solids(shape):
         # no exact construction for this tool and move, or the kernel built nothing (seen on
         # steep chords of a few µm): the published method's sampled sweep, reported as such
