@@ -158,9 +158,10 @@ class BRepEngine:
     # checkpoint, a parallel worker's cells) gets fresh bounds, since old ones may claim too much air
     _ceiling: MaterialCeiling | None = field(default=None, init=False, repr=False)
     _ceiling_cells: list[Cell] | None = field(default=None, init=False, repr=False)
-    # the disk the last CL's cylindrical tool left without material, as (x, y, z_lo, z_hi, radius)
-    # mm, or None: a cut starting there may leave that disk out of its region (see _cutting_region)
-    cleared: tuple[float, float, float, float, float] | None = field(default=None, init=False)
+    # where the last CL's tool left no material, or None: (x, y, z_lo, z_hi, radius) mm of the
+    # cylinder a cylindrical tool emptied (radius 0 for other tools) and the tool's repr; a cut
+    # starting there may leave that tool out of its sweep (see _starts_cleared)
+    cleared: tuple[float, float, float, float, float, str] | None = field(default=None, init=False)
 
     # -- public -------------------------------------------------------------------------------
     def start(self, stock: Stock | TopoDS_Shape) -> None:
@@ -290,11 +291,12 @@ class BRepEngine:
         """
         cleared, self.cleared = self.cleared, None  # a CL that raises or fails leaves nothing proven
         outcome, contacts = self._cut(index, move, tool, feed_angle, cleared)
-        cyl = cylinder_tool(tool)
-        if outcome.status != CLStatus.FAILED and cyl is not None and self.options.sweep == "exact":
+        if outcome.status != CLStatus.FAILED and self.options.sweep == "exact":
             # the exact sweep holds the tool at the motion's end: every cell lost what lay in it
             end = step_motion(move).end
-            self.cleared = (end[0], end[1], end[2], end[2] + cyl[1], cyl[0])
+            cyl = cylinder_tool(tool)
+            height = cyl[1] if cyl else tool_radii(tool)[2]
+            self.cleared = (end[0], end[1], end[2], end[2] + height, cyl[0] if cyl else 0.0, repr(tool))
         return outcome, contacts
 
     def _cut(self, index: int, move: Move, tool: MillingTool, feed_angle: float,
@@ -572,13 +574,16 @@ class BRepEngine:
         return str(folder / f"cl{index:06d}_*.brep")
 
 
-def _starts_cleared(motion: Move, tool: MillingTool, cleared: tuple[float, float, float, float, float] | None) -> bool:
-    """Whether the disk the previous CL left empty (``BRepEngine.cleared``) holds this cylindrical
-    tool at the start of ``motion`` over the whole height its sweep reaches: then the sweep and the
-    layers' region may leave the start disk out (same material, cheaper Booleans)."""
-    cyl = cylinder_tool(tool)
-    if cleared is None or cyl is None or (cleared[0], cleared[1]) != motion.start[:2]:
+def _starts_cleared(motion: Move, tool: MillingTool, cleared: tuple | None) -> bool:
+    """Whether the tool the previous CL left empty (``BRepEngine.cleared``) holds this tool at the
+    start of ``motion``: for a cylindrical tool, a disk as wide over the whole height its sweep
+    reaches; for another tool, the very same tool at the very same point. Then the sweep (and the
+    layers' region) may leave the tool at the start out: same material, cheaper Booleans."""
+    if cleared is None or (cleared[0], cleared[1]) != motion.start[:2]:
         return False
+    cyl = cylinder_tool(tool)
+    if cyl is None:
+        return cleared[5:] == (repr(tool),) and cleared[2] == motion.start[2]
     z_tip, z_end = sorted((motion.start[2], motion.end[2]))
     return cleared[2] <= z_tip and z_end + cyl[1] <= cleared[3] and cyl[0] <= cleared[4]
 

@@ -218,6 +218,37 @@ def test_a_cut_from_the_last_ones_end_disk_equals_the_full_sweep_on_a_trochoid(l
     assert any(c.layers for c in open_engine.cells) == layers  # the path meant was the one tested
 
 
+def test_ball_rows_cut_from_the_last_ones_end_equal_the_whole_sweeps():
+    """A ball end mill's finishing rows (1 mm lines, the next row 1.5 mm over and 0.05 mm lower): a
+    line from where the last one ended leaves the ball's back half out of its sweep. Against an
+    engine that never knows where the last tool stood, CL by CL. Every line starts where the last
+    CL's tool stood (a row's first, where the plunge ended); no plunge does."""
+    tool = BallEndMill(6.0, 15.0, number=2)
+    moves = []
+    for k in range(3):
+        y, z = 12.0 + 1.5 * k, -1.0 - 0.05 * k
+        moves.append(LinearMove((5.0, y, 2.0), (5.0, y, z), feed=300.0, tool=1))
+        moves += [LinearMove((5.0 + j, y, z), (6.0 + j, y, z), feed=900.0, tool=1) for j in range(6)]
+    open_engine, closed = BRepEngine(EngineOptions()), BRepEngine(EngineOptions())
+    open_engine.start(BLOCK)
+    closed.start(BLOCK)
+    opened = 0
+    for index, move in enumerate(moves):
+        opened += open_engine.cleared is not None and open_engine.cleared[:3] == move.start
+        a = open_engine.step(index, move, tool, 0.0)
+        closed.cleared = None
+        b = closed.step(index, move, tool, 0.0)
+        assert a.status == b.status == CLStatus.ENGAGED
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=1e-6, abs=1e-9)
+        assert a.contact_area == pytest.approx(b.contact_area, rel=1e-6, abs=1e-9)
+        assert len(a.slices) == len(b.slices)
+        for sa, sb in zip(a.slices, b.slices):
+            assert [x for i in sa.intervals for x in (i.entry, i.exit)] == pytest.approx(
+                [x for i in sb.intervals for x in (i.entry, i.exit)], abs=1e-3)
+    assert opened == 3 * 6  # every line; plunges are not lines
+    assert open_engine.ipw_volume == pytest.approx(closed.ipw_volume, rel=1e-9)
+
+
 @pytest.mark.parametrize("layers", [True, False])
 def test_a_cut_below_the_last_ones_end_keeps_its_whole_start_disk(layers):
     """A plunge to 1 mm, then a slot from the same XY but 3 mm deep: the disk the plunge left empty

@@ -158,6 +158,26 @@ def test_lines_and_arcs_are_sewn_without_a_boolean(name, monkeypatch):
         assert count_faces(line.shape) == 8
 
 
+@pytest.mark.parametrize("name", ["ball", "bullnose", "tapered", "chamfer", "apt"])
+@pytest.mark.parametrize("d", [(0.6, 0.8, 0.0), (-20.0, 5.0, 0.0)])
+def test_a_line_open_at_its_start_leaves_out_the_tools_back_half_only(name, d):
+    """Closed form: the section swept over the line plus the tool's front half; the open sweep lies
+    inside the whole one, and what it leaves out lies in the tool at the start."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+
+    from fusioncut.engines.brep.sweep import placed_tool
+
+    tool = TOOLS[name]
+    move = LinearMove((1, 2, 3), (1 + d[0], 2 + d[1], 3))
+    whole, open_ = swept_volume(tool, move), swept_volume(tool, move, open_start=True)
+    assert open_.method == "exact"
+    section = area(full_section(tool.profile(), (0, 0, 0), (1, 0, 0)))
+    assert volume(open_.shape) == pytest.approx(volume(tool_solid(tool)) / 2 + math.hypot(*d) * section, rel=REL)
+    assert volume(BRepAlgoAPI_Cut(open_.shape, whole.shape).Shape()) == pytest.approx(0.0, abs=1e-6)
+    left_out = BRepAlgoAPI_Cut(whole.shape, open_.shape).Shape()
+    assert volume(BRepAlgoAPI_Cut(left_out, placed_tool(tool, move.start)).Shape()) == pytest.approx(0.0, abs=1e-6)
+
+
 @pytest.mark.parametrize("move", [LinearMove((3.0, 4.0, -2.0), (4.0, 4.0, -2.0)),
                                   LinearMove((3.0, 4.0, -2.0), (3.0, 4.0, -6.0)),
                                   ArcMove((3.0, 4.0, -2.0), (7.0, 8.0, -2.0), center=(7.0, 4.0, -2.0))])
