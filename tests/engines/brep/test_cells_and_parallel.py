@@ -1,8 +1,12 @@
 """The fast paths give the whole-IPW engine's results: IPW cells, and cells split among Dask workers."""
 from __future__ import annotations
 
+import math
 
+import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
@@ -183,3 +187,62 @@ def test_dask_workers_split_cells_as_one_process():
         assert volume(engine.ipw) == pytest.approx(one.ipw_volume, rel=1e-9)
     assert len(gathered) == len(one.cells) > 4
     assert_same(maps, alone)
+
+
+coord = st.floats(-30.0, 30.0, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(coord, coord, coord, coord, coord, coord, st.floats(0.0, 20.0))
+def test_segment_box_distance_is_the_brute_force_one(ax, ay, bx, by, x0, y0, size):
+    from fusioncut.engines.brep.engine import _segment_box_distance
+
+    t = np.linspace(0.0, 1.0, 4001)
+    px, py = ax + t * (bx - ax), ay + t * (by - ay)
+    u = np.linspace(0.0, size, 401)
+    # the rectangle's outline, densely; a segment point inside the rectangle is at distance 0
+    rx = np.concatenate([x0 + u, x0 + u, np.full_like(u, x0), np.full_like(u, x0 + size)])
+    ry = np.concatenate([np.full_like(u, y0), np.full_like(u, y0 + size), y0 + u, y0 + u])
+    inside = np.any((px >= x0) & (px <= x0 + size) & (py >= y0) & (py <= y0 + size))
+    brute = 0.0 if inside else np.sqrt(np.min((px[:, None] - rx[None, :]) ** 2 + (py[:, None] - ry[None, :]) ** 2))
+    got = _segment_box_distance((ax, ay), (bx, by), (x0, y0, x0 + size, y0 + size))
+    step = math.hypot(bx - ax, by - ay) / 4000 + size / 400
+    assert brute - step - 1e-9 <= got <= brute + 1e-9
+
+
+def test_a_ball_raster_along_cell_walls_skips_the_columns_it_only_touches(monkeypatch):
+    """Ball rows 4 mm deep whose sweeps end on cell walls (1 mm lines from x = 5 to 15, cells of
+    5 mm), one 3 mm (the ball's radius) beside a wall, one 2.6 mm: the columns behind a line's open
+    start and those at exactly its reach get no Boolean, the one just within reach does; the maps
+    equal the whole workpiece's, CL by CL. (The second row's plunge, 0.4 mm beside the first's, is
+    where the whole workpiece's Boolean once came out as nothing removed: now a split that changes
+    the IPW without removing anything is a failure, and the sweep with its seams turned cuts it.)"""
+    from fusioncut.engines.brep import engine as engine_module
+    from fusioncut.model import BallEndMill
+
+    tool = BallEndMill(6.0, 15.0, number=2)
+    moves = []
+    for y, z in ((7.6, -4.0), (8.0, -4.1), (9.5, -4.05)):
+        moves.append(LinearMove((5.0, y, 3.0), (5.0, y, z), feed=300.0, tool=1))
+        moves += [LinearMove((5.0 + j, y, z), (6.0 + j, y, z), feed=900.0, tool=1) for j in range(10)]
+    path = Toolpath(tuple(moves), {1: tool})
+    whole = list(BRepEngine(EngineOptions(cell_size=None, fuzzy=1e-6, ceiling_pixel=None)).run(path, STOCK))
+    behind, beside = [], set()
+    clear_of = engine_module._column_clear_of
+
+    def counted(square, motion, reach, open_start):
+        skip = clear_of(square, motion, reach, open_start)
+        if skip and open_start and not clear_of(square, motion, reach, False):
+            behind.append(square)
+        elif skip:
+            beside.add((square, motion.start))
+        return skip
+
+    monkeypatch.setattr(engine_module, "_column_clear_of", counted)
+    engine = BRepEngine(EngineOptions(cell_size=5.0, fuzzy=1e-6))
+    fast = list(engine.run(path, STOCK))
+    assert_same(fast, whole)
+    conserved(engine)
+    assert ((5.0, 0.0, 5.0), (6.0, 8.0, -4.1)) in beside  # the column at exactly 3 mm from its line
+    assert ((5.0, 0.0, 5.0), (6.0, 7.6, -4.0)) not in beside  # 2.6 mm: the ball cuts there
+    assert len(behind) >= 30  # a column behind every line (one starting on a wall, two within)

@@ -73,7 +73,7 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
 
     def flaky(self, ipw, sweep, ipw_volume):
         calls["n"] += 1
-        if calls["n"] == 2:
+        if calls["n"] in (2, 3):  # the CL's Boolean, and its retry with the sweep's seams turned
             raise engine_mod.BooleanFailure("simulated kernel failure")
         return real(self, ipw, sweep, ipw_volume)
 
@@ -88,6 +88,30 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
     assert failed[0].cl_index < maps[-1].cl_index  # the run went on
     # what the later CLs removed still adds up
     assert STOCK.volume - eng.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-6)
+
+
+def test_a_boolean_failed_once_is_retried_with_the_sweeps_seams_turned(monkeypatch):
+    seams = []
+    real_sweep, real_subtract = engine_mod.swept_volume, BRepEngine._subtract
+
+    def recording(tool, move, method, seam, open_start=False):
+        seams.append(seam)
+        return real_sweep(tool, move, method, seam, open_start)
+
+    def fails_first(self, ipw, sweep, ipw_volume):
+        if len(seams) == 1:
+            raise engine_mod.BooleanFailure("simulated kernel failure")
+        return real_subtract(self, ipw, sweep, ipw_volume)
+
+    monkeypatch.setattr(engine_mod, "swept_volume", recording)
+    monkeypatch.setattr(BRepEngine, "_subtract", fails_first)
+    path = program(10, 2)
+    retried = list(BRepEngine(EngineOptions(max_segment_length=6.0, layers=False)).run(path, STOCK))
+    monkeypatch.undo()
+    plain = list(BRepEngine(EngineOptions(max_segment_length=6.0, layers=False)).run(path, STOCK))
+    assert seams[1] == pytest.approx(seams[0] + math.pi / 2)
+    assert [m.status for m in retried] == [m.status for m in plain] and CLStatus.FAILED not in [m.status for m in plain]
+    assert [m.removed_volume for m in retried] == pytest.approx([m.removed_volume for m in plain], rel=1e-9, abs=1e-9)
 
 
 def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch):
