@@ -365,11 +365,14 @@ class BRepEngine:
         try:
             try:
                 results = [(c, *self._subtract(c.shape, sweep.shape, c.volume)) for c in touched]
-            except BooleanFailure:
+            except BooleanFailure as first:
                 # once more with the sweep's seams a quarter turn on: the kernel's failures seen came
                 # where a sweep's cylinder met the IPW near its own seam and the old cylinder's (a
                 # ball plunge beside the last one failed with every fuzzy value, and was right so)
-                other = swept_volume(tool, motion, self.options.sweep, seam + 0.5 * math.pi, open_start)
+                try:
+                    other = swept_volume(tool, motion, self.options.sweep, seam + 0.5 * math.pi, open_start)
+                except Exception:  # noqa: BLE001 - the first failure is the one to report
+                    raise first from None
                 results = [(c, *self._subtract(c.shape, other.shape, c.volume)) for c in touched]
                 sweep = replace(other, method=sweep.method)
         except BooleanFailure as exc:
