@@ -250,14 +250,16 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
             continue
         op, lost_pieces, kept_pieces = split
         lost = area(compound(lost_pieces)) if lost_pieces else 0.0
-        if lost <= 1e-12 * max(1.0, old_area):
-            return None, None, None
         new = compound(kept_pieces)
         new_area = area(new) if kept_pieces else 0.0
+        # checked when nothing is lost too: a split that loses nothing may still rebuild the region
+        # wrong (seen in 3D, see BRepEngine._subtract)
         mismatch = old_area - new_area - lost
         if abs(mismatch) > 1e-6 + 1e-6 * old_area:
             last = f"2D pieces and region disagree by {mismatch:.4g} mm² (fuzzy={fuzzy})"
             continue
+        if lost <= 1e-12 * max(1.0, old_area):
+            return None, None, None
         return new, new_area, op
     raise RegionCutFailure(last)
 

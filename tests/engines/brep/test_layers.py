@@ -315,3 +315,19 @@ def test_a_contour_retraced_deeper_cuts_fewer_layers_and_the_same_material(monke
     for a, b, c in zip(runs["remembered"], runs["forgotten"], runs["solid"]):
         _same(a, b)
         _same(a, c)
+
+
+def test_a_split_that_loses_nothing_but_rebuilds_the_region_wrong_is_a_failure(monkeypatch):
+    """A General Fuse reporting no lost piece and a kept region of another area (what the 3D kernel
+    once did on a ball plunge) is no 'nothing lost': the cut fails, after every fuzzy value."""
+    from fusioncut.engines.brep import layers as layers_module
+    from fusioncut.engines.brep.layers import RegionCutFailure, _cut_region
+
+    square = cylinder_region(5.0, LinearMove((0.0, 0.0, 0.0), (20.0, 0.0, 0.0)))
+    smaller = cylinder_region(5.0, LinearMove((0.0, 0.0, 0.0), (10.0, 0.0, 0.0)))
+    tool = cylinder_region(3.0, LinearMove((40.0, 0.0, 0.0), (50.0, 0.0, 0.0)))  # far away: nothing lost
+    assert _cut_region(square, tool, area(square), (0.0,)) == (None, None, None)
+    real = layers_module.split_pieces
+    monkeypatch.setattr(layers_module, "split_pieces", lambda *a: (real(*a)[0], [], [smaller]))
+    with pytest.raises(RegionCutFailure, match="disagree"):
+        _cut_region(square, tool, area(square), (0.0, 1e-6))

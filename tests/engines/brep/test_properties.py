@@ -114,6 +114,23 @@ def test_a_boolean_failed_once_is_retried_with_the_sweeps_seams_turned(monkeypat
     assert [m.removed_volume for m in retried] == pytest.approx([m.removed_volume for m in plain], rel=1e-9, abs=1e-9)
 
 
+def test_a_split_that_removes_nothing_but_rebuilds_the_workpiece_wrong_is_a_failure(monkeypatch):
+    """What the kernel did on a ball plunge beside the last one: no piece inside the sweep, and the
+    workpiece rebuilt larger. That is a failure after every fuzzy value, not 'nothing removed'."""
+    from fusioncut.engines.brep.stock import stock_solid
+
+    eng = BRepEngine(EngineOptions(cell_size=None))
+    eng.start(STOCK)
+    far = swept_volume(FlatEndMill(6, 15), LinearMove((500.0, 500.0, 0.0), (510.0, 500.0, 0.0))).shape
+    ipw = eng.cells[0].shape
+    assert eng._subtract(ipw, far, STOCK.volume)[1] is None  # truly nothing removed
+    larger = stock_solid(BoxStock(STOCK.minimum, tuple(c + 1.0 for c in STOCK.maximum)))
+    real = engine_mod.split_pieces
+    monkeypatch.setattr(engine_mod, "split_pieces", lambda *a: (real(*a)[0], [], [larger]))
+    with pytest.raises(engine_mod.BooleanFailure, match="nothing removed, yet"):
+        eng._subtract(ipw, far, STOCK.volume)
+
+
 def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch):
     calls = {"n": 0}
     real = layers_mod._cut_region
