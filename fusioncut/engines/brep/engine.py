@@ -54,8 +54,8 @@ from fusioncut.engines.brep.layers import (
 )
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, on_old_boundary,
-    pieces, quarters, read_binary_brep, solids, split_into_cells, split_pieces, unify, volume, volume_change,
-    without_slivers, write_binary_brep, write_brep,
+    pieces, quarters, read_binary_brep, solids, split_into_cells, split_pieces, strictly_inside, unify, volume,
+    volume_change, without_slivers, write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import cylinder_region, cylinder_tool, swept_volume
@@ -361,10 +361,13 @@ class BRepEngine:
                 ceiling.clear(fp)
             return CutOutcome(idle, method=method, timings=timings), []
         t1 = t2
+        # a point inside the tool at the motion's end, on its axis: material there must be removed
+        end, r_tool = motion.end, tool_radii(tool)[0]
+        probe = (end[0], end[1], end[2] + 0.5 * min(r_tool, tool_radii(tool)[2]))
         # all cells are cut before any is changed: a failure leaves the IPW as it was
         try:
             try:
-                results = [(c, *self._subtract(c.shape, sweep.shape, c.volume)) for c in touched]
+                results = [(c, *self._subtract(c.shape, sweep.shape, c.volume, probe)) for c in touched]
             except BooleanFailure as first:
                 # once more with the sweep's seams a quarter turn on: the kernel's failures seen came
                 # where a sweep's cylinder met the IPW near its own seam and the old cylinder's (a
@@ -373,7 +376,7 @@ class BRepEngine:
                     other = swept_volume(tool, motion, self.options.sweep, seam + 0.5 * math.pi, open_start)
                 except Exception:  # noqa: BLE001 - the first failure is the one to report
                     raise first from None
-                results = [(c, *self._subtract(c.shape, other.shape, c.volume)) for c in touched]
+                results = [(c, *self._subtract(c.shape, other.shape, c.volume, probe)) for c in touched]
                 sweep = replace(other, method=sweep.method)
         except BooleanFailure as exc:
             saved = self._save_failure(index, sweep.shape)
@@ -448,7 +451,7 @@ class BRepEngine:
                 max(b[1][2] for b in boxes), self.options.ceiling_pixel)
         return self._ceiling
 
-    def _subtract(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float):
+    def _subtract(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float, probe: tuple[float, float, float] | None = None):
         """(removed volume, new IPW or None when nothing is removed, the split with its history).
 
         One General Fuse (:func:`~fusioncut.engines.brep.occ.split_pieces`) gives the pieces of the
@@ -459,7 +462,10 @@ class BRepEngine:
         and retried with the next fuzzy value. That holds when nothing is removed too: a ball's
         plunge 0.4 mm beside its last one, its cylinder meeting the old one's near both seams, came
         out as no piece inside and the IPW rebuilt 9.3 mm³ larger (the kernel only warned of an
-        acquired self-intersection); taken as nothing removed, that CL was reported as air.
+        acquired self-intersection); taken as nothing removed, that CL was reported as air. And
+        nothing removed while ``probe`` (mm, a point inside the sweep) lies inside the IPW is a
+        failure as well: a slot whose sides were tangent to the last plunge's hole split nothing
+        and was reported as air.
         """
         last = "unknown"
         sweep_volume = None  # only needed once something is removed
@@ -478,10 +484,13 @@ class BRepEngine:
             allowed = 0.01 + 0.05 * removed + 1e-6 * ipw_volume
             if removed <= 1e-12 * max(1.0, self.stock_volume):
                 change = volume_change(ipw, compound(outside))  # 0 without a face changed
-                if abs(change) <= allowed:
-                    return 0.0, None, None
-                last = f"nothing removed, yet the split changed the IPW by {change:.4g} mm³ (fuzzy={fuzzy})"
-                continue
+                if abs(change) > allowed:
+                    last = f"nothing removed, yet the split changed the IPW by {change:.4g} mm³ (fuzzy={fuzzy})"
+                    continue
+                if probe is not None and strictly_inside(ipw, probe):
+                    last = f"nothing removed, yet the IPW holds the tool's end point {probe} (fuzzy={fuzzy})"
+                    continue
+                return 0.0, None, None
             sweep_volume = volume(sweep) if sweep_volume is None else sweep_volume
             if removed > sweep_volume * (1 + 1e-6) + 1e-9:
                 # more material than the tool swept: the intersection went wrong, not the physics

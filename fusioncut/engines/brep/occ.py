@@ -244,6 +244,14 @@ def split_pieces(a: TopoDS_Shape, b: TopoDS_Shape, pf, kind: TopAbs_ShapeEnum, p
     return split, inside, outside
 
 
+def strictly_inside(shape: TopoDS_Shape, point: Vec3, tol: float = 1e-6) -> bool:
+    """Whether ``point`` (mm) lies inside the solid ``shape``, farther than ``tol`` from its boundary."""
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.TopAbs import TopAbs_IN
+
+    return BRepClass3d_SolidClassifier(shape, pnt(point), tol).State() == TopAbs_IN
+
+
 def pieces(split, shape: TopoDS_Shape) -> list[TopoDS_Shape]:
     """The pieces a General Fuse split ``shape`` into (the shape itself when it was not split: a
     split deletes nothing)."""

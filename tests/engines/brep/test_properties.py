@@ -71,11 +71,11 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
     calls = {"n": 0}
     real = BRepEngine._subtract
 
-    def flaky(self, ipw, sweep, ipw_volume):
+    def flaky(self, ipw, sweep, ipw_volume, probe=None):
         calls["n"] += 1
         if calls["n"] in (2, 3):  # the CL's Boolean, and its retry with the sweep's seams turned
             raise engine_mod.BooleanFailure("simulated kernel failure")
-        return real(self, ipw, sweep, ipw_volume)
+        return real(self, ipw, sweep, ipw_volume, probe)
 
     monkeypatch.setattr(BRepEngine, "_subtract", flaky)
     eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0, layers=False))
@@ -98,10 +98,10 @@ def test_a_boolean_failed_once_is_retried_with_the_sweeps_seams_turned(monkeypat
         seams.append(seam)
         return real_sweep(tool, move, method, seam, open_start)
 
-    def fails_first(self, ipw, sweep, ipw_volume):
+    def fails_first(self, ipw, sweep, ipw_volume, probe=None):
         if len(seams) == 1:
             raise engine_mod.BooleanFailure("simulated kernel failure")
-        return real_subtract(self, ipw, sweep, ipw_volume)
+        return real_subtract(self, ipw, sweep, ipw_volume, probe)
 
     monkeypatch.setattr(engine_mod, "swept_volume", recording)
     monkeypatch.setattr(BRepEngine, "_subtract", fails_first)
@@ -129,6 +129,21 @@ def test_a_split_that_removes_nothing_but_rebuilds_the_workpiece_wrong_is_a_fail
     monkeypatch.setattr(engine_mod, "split_pieces", lambda *a: (real(*a)[0], [], [larger]))
     with pytest.raises(engine_mod.BooleanFailure, match="nothing removed, yet"):
         eng._subtract(ipw, far, STOCK.volume)
+
+
+def test_nothing_removed_while_the_tools_end_lies_in_material_is_a_failure(monkeypatch):
+    """A split that finds nothing and changes nothing (a slot tangent to the last plunge's hole did
+    that), while a point inside the tool at its end lies inside the workpiece."""
+    eng = BRepEngine(EngineOptions(cell_size=None))
+    eng.start(STOCK)
+    slot = swept_volume(FlatEndMill(6, 15), LinearMove((10.0, 10.0, -2.0), (20.0, 10.0, -2.0))).shape
+    ipw = eng.cells[0].shape
+    assert eng._subtract(ipw, slot, STOCK.volume, (20.0, 10.0, -1.0))[0] > 0  # the kernel right
+    real = engine_mod.split_pieces
+    monkeypatch.setattr(engine_mod, "split_pieces", lambda a, *rest: (real(a, *rest)[0], [], [a]))
+    with pytest.raises(engine_mod.BooleanFailure, match="holds the tool's end point"):
+        eng._subtract(ipw, slot, STOCK.volume, (20.0, 10.0, -1.0))
+    assert eng._subtract(ipw, slot, STOCK.volume, (20.0, 10.0, 3.0))[1] is None  # a probe in the air proves nothing
 
 
 def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch):
