@@ -362,8 +362,8 @@ class BRepEngine:
             return CutOutcome(idle, method=method, timings=timings), []
         t1 = t2
         # a point inside the tool at the motion's end, on its axis: material there must be removed
-        end, r_tool = motion.end, tool_radii(tool)[0]
-        probe = (end[0], end[1], end[2] + 0.5 * min(r_tool, tool_radii(tool)[2]))
+        end, (reach, _, length) = motion.end, tool_radii(tool)
+        probe = (end[0], end[1], end[2] + 0.5 * min(reach, length))
         # all cells are cut before any is changed: a failure leaves the IPW as it was
         try:
             try:

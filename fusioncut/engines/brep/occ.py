@@ -6,6 +6,7 @@ import math
 from collections.abc import Iterable, Iterator
 from itertools import islice
 
+from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.BOPAlgo import BOPAlgo_Builder, BOPAlgo_PaveFiller
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder, BRep_Tool
@@ -23,7 +24,7 @@ from OCP.GProp import GProp_GProps
 from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
 from OCP.ShapeAnalysis import ShapeAnalysis_ShapeTolerance
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
-from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SOLID, TopAbs_ShapeEnum
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_IN, TopAbs_SOLID, TopAbs_ShapeEnum
 from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Edge, TopoDS_Face, TopoDS_Shape
@@ -246,9 +247,6 @@ def split_pieces(a: TopoDS_Shape, b: TopoDS_Shape, pf, kind: TopAbs_ShapeEnum, p
 
 def strictly_inside(shape: TopoDS_Shape, point: Vec3, tol: float = 1e-6) -> bool:
     """Whether ``point`` (mm) lies inside the solid ``shape``, farther than ``tol`` from its boundary."""
-    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
-    from OCP.TopAbs import TopAbs_IN
-
     return BRepClass3d_SolidClassifier(shape, pnt(point), tol).State() == TopAbs_IN
 
 
