@@ -361,13 +361,11 @@ class BRepEngine:
                 ceiling.clear(fp)
             return CutOutcome(idle, method=method, timings=timings), []
         t1 = t2
-        # a point inside the tool at the motion's end, on its axis: material there must be removed
-        end, (reach, _, length) = motion.end, tool_radii(tool)
-        probe = (end[0], end[1], end[2] + 0.5 * min(reach, length))
+        probes = _end_probes(motion, tool)
         # all cells are cut before any is changed: a failure leaves the IPW as it was
         try:
             try:
-                results = [(c, *self._subtract(c.shape, sweep.shape, c.volume, probe)) for c in touched]
+                results = [(c, *self._subtract(c.shape, sweep.shape, c.volume, probes)) for c in touched]
             except BooleanFailure as first:
                 # once more with the sweep's seams a quarter turn on: the kernel's failures seen came
                 # where a sweep's cylinder met the IPW near its own seam and the old cylinder's (a
@@ -376,7 +374,7 @@ class BRepEngine:
                     other = swept_volume(tool, motion, self.options.sweep, seam + 0.5 * math.pi, open_start)
                 except Exception:  # noqa: BLE001 - the first failure is the one to report
                     raise first from None
-                results = [(c, *self._subtract(c.shape, other.shape, c.volume, probe)) for c in touched]
+                results = [(c, *self._subtract(c.shape, other.shape, c.volume, probes)) for c in touched]
                 sweep = replace(other, method=sweep.method)
         except BooleanFailure as exc:
             saved = self._save_failure(index, sweep.shape)
@@ -451,7 +449,8 @@ class BRepEngine:
                 max(b[1][2] for b in boxes), self.options.ceiling_pixel)
         return self._ceiling
 
-    def _subtract(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float, probe: tuple[float, float, float] | None = None):
+    def _subtract(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float,
+                  probes: tuple[tuple[float, float, float], ...] = ()):
         """(removed volume, new IPW or None when nothing is removed, the split with its history).
 
         One General Fuse (:func:`~fusioncut.engines.brep.occ.split_pieces`) gives the pieces of the
@@ -463,8 +462,8 @@ class BRepEngine:
         plunge 0.4 mm beside its last one, its cylinder meeting the old one's near both seams, came
         out as no piece inside and the IPW rebuilt 9.3 mm³ larger (the kernel only warned of an
         acquired self-intersection); taken as nothing removed, that CL was reported as air. And
-        nothing removed while ``probe`` (mm, a point inside the sweep) lies inside the IPW is a
-        failure as well: a slot whose sides were tangent to the last plunge's hole split nothing
+        nothing removed while one of ``probes`` (mm, points inside the sweep) lies inside the IPW is
+        a failure as well: a slot whose sides were tangent to the last plunge's hole split nothing
         and was reported as air.
         """
         last = "unknown"
@@ -487,8 +486,9 @@ class BRepEngine:
                 if abs(change) > allowed:
                     last = f"nothing removed, yet the split changed the IPW by {change:.4g} mm³ (fuzzy={fuzzy})"
                     continue
-                if probe is not None and strictly_inside(ipw, probe):
-                    last = f"nothing removed, yet the IPW holds the tool's end point {probe} (fuzzy={fuzzy})"
+                inside = next((p for p in probes if strictly_inside(ipw, p)), None)
+                if inside is not None:
+                    last = f"nothing removed, yet the IPW holds the point {inside} of the tool at its end (fuzzy={fuzzy})"
                     continue
                 return 0.0, None, None
             sweep_volume = volume(sweep) if sweep_volume is None else sweep_volume
@@ -617,6 +617,22 @@ def _starts_cleared(motion: Move, tool: MillingTool, cleared: tuple | None) -> b
         return cleared[5:] == (repr(tool),) and cleared[2] == motion.start[2]
     z_tip, z_end = sorted((motion.start[2], motion.end[2]))
     return cleared[2] <= z_tip and z_end + cyl[1] <= cleared[3] and cyl[0] <= cleared[4]
+
+
+def _end_probes(motion: Move, tool: MillingTool) -> tuple[tuple[float, float, float], ...]:
+    """Points (mm) inside the tool at the end of ``motion``, where material must go if the IPW holds
+    them: on the axis half the tool's reach (or length) up, and, for a motion with a horizontal
+    direction at its end, 0.9 of the tool's radius at that height ahead of the axis. The front
+    point is where a slot's new material lies when the end point on the axis is already in a hole
+    (a line leaving a plunge's hole was once reported as air)."""
+    end, (reach, _, length) = motion.end, tool_radii(tool)
+    h = 0.5 * min(reach, length)
+    axis = (end[0], end[1], end[2] + h)
+    d = horizontal_direction(motion)
+    if d is None:
+        return (axis,)
+    r = 0.9 * tool.profile().radius_at(h)
+    return axis, (axis[0] + r * d[0], axis[1] + r * d[1], axis[2])
 
 
 def _column_clear_of(square: tuple[float, float, float] | None, motion: Move, reach: float, open_start: bool) -> bool:

@@ -121,8 +121,9 @@ KNOWN_SOLID_FAILURES = [
     # and tangent to the plunge's hole: the solid cell's General Fuse finds nothing inside and
     # rebuilds the cell 25 mm³ larger (now a FAILED CL; before, silently air)
     ([(34.0, 4.5, -1.0), (34.0, 0.0, -1.0)], None, 15.0),
-    # the solid engine reports CL 2 as air (its end point lies in the plunge's hole, so the probe
-    # cannot tell) and CLs 3-4 as FAILED (before: wrong volumes, conservation 3.2e-5)
+    # the solid engine finds nothing removed on CLs 2-4, now FAILED: a point ahead of the tool's
+    # axis at the end lies in material (first: CL 2 silently air, CLs 3-4 wrong volumes,
+    # conservation 3.2e-5; then CL 2 air, its end point on the axis in the plunge's hole)
     ([(34.0, 4.5, -2.5), (36.5, 24.5, -1.0)], 4.0, 15.0),
 ]
 

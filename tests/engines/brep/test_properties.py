@@ -71,11 +71,11 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
     calls = {"n": 0}
     real = BRepEngine._subtract
 
-    def flaky(self, ipw, sweep, ipw_volume, probe=None):
+    def flaky(self, ipw, sweep, ipw_volume, probes=()):
         calls["n"] += 1
         if calls["n"] in (2, 3):  # the CL's Boolean, and its retry with the sweep's seams turned
             raise engine_mod.BooleanFailure("simulated kernel failure")
-        return real(self, ipw, sweep, ipw_volume, probe)
+        return real(self, ipw, sweep, ipw_volume, probes)
 
     monkeypatch.setattr(BRepEngine, "_subtract", flaky)
     eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0, layers=False))
@@ -98,10 +98,10 @@ def test_a_boolean_failed_once_is_retried_with_the_sweeps_seams_turned(monkeypat
         seams.append(seam)
         return real_sweep(tool, move, method, seam, open_start)
 
-    def fails_first(self, ipw, sweep, ipw_volume, probe=None):
+    def fails_first(self, ipw, sweep, ipw_volume, probes=()):
         if len(seams) == 1:
             raise engine_mod.BooleanFailure("simulated kernel failure")
-        return real_subtract(self, ipw, sweep, ipw_volume, probe)
+        return real_subtract(self, ipw, sweep, ipw_volume, probes)
 
     monkeypatch.setattr(engine_mod, "swept_volume", recording)
     monkeypatch.setattr(BRepEngine, "_subtract", fails_first)
@@ -138,12 +138,33 @@ def test_nothing_removed_while_the_tools_end_lies_in_material_is_a_failure(monke
     eng.start(STOCK)
     slot = swept_volume(FlatEndMill(6, 15), LinearMove((10.0, 10.0, -2.0), (20.0, 10.0, -2.0))).shape
     ipw = eng.cells[0].shape
-    assert eng._subtract(ipw, slot, STOCK.volume, (20.0, 10.0, -1.0))[0] > 0  # the kernel right
+    assert eng._subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, -1.0),))[0] > 0  # the kernel right
     real = engine_mod.split_pieces
     monkeypatch.setattr(engine_mod, "split_pieces", lambda a, *rest: (real(a, *rest)[0], [], [a]))
-    with pytest.raises(engine_mod.BooleanFailure, match="holds the tool's end point"):
-        eng._subtract(ipw, slot, STOCK.volume, (20.0, 10.0, -1.0))
-    assert eng._subtract(ipw, slot, STOCK.volume, (20.0, 10.0, 3.0))[1] is None  # a probe in the air proves nothing
+    with pytest.raises(engine_mod.BooleanFailure, match=r"holds the point \(20.0, 10.0, -1.0\)"):
+        eng._subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, 3.0), (20.0, 10.0, -1.0)))
+    assert eng._subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, 3.0),))[1] is None  # a probe in the air proves nothing
+
+
+@pytest.mark.parametrize("tool", [FlatEndMill(6, 15), BallEndMill(6, 15), BullNoseEndMill(10, 20, corner_radius=2)])
+@pytest.mark.parametrize("move", [LinearMove((0.0, 0.0, 0.0), (7.0, -3.0, 0.0)),
+                                  ArcMove((0.0, 0.0, 0.0), (8.0, 0.0, 0.0), center=(4.0, 0.0, 0.0)),
+                                  LinearMove((0.0, 0.0, 5.0), (0.0, 0.0, 0.0))])
+def test_the_end_probes_lie_inside_the_tool_at_the_end(tool, move):
+    """The points that prove material left in the tool's way lie strictly inside the tool at the
+    motion's end (so inside its sweep); a horizontal motion has one ahead of the axis, in the
+    direction of motion at the end."""
+    from fusioncut.engines.brep.occ import strictly_inside
+    from fusioncut.engines.brep.sweep import placed_tool
+
+    probes = engine_mod._end_probes(move, tool)
+    solid = placed_tool(tool, move.end)
+    assert all(strictly_inside(solid, p, tol=1e-3) for p in probes)
+    d = engine_mod.horizontal_direction(move)
+    assert len(probes) == (1 if d is None else 2)
+    if d is not None:
+        ahead = (probes[1][0] - move.end[0]) * d[0] + (probes[1][1] - move.end[1]) * d[1]
+        assert ahead == pytest.approx(0.9 * tool.profile().radius_at(probes[0][2] - move.end[2]))
 
 
 def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch):
