@@ -53,8 +53,8 @@ from fusioncut.engines.brep.layers import (
     stack_volume,
 )
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, intersections, on_old_boundary,
-    pieces, quarters, read_binary_brep, solids, split_into_cells, split_pieces, strictly_inside, unify, volume,
+    bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, fuse_all, halves, intersections,
+    on_old_boundary, pieces, quarters, read_binary_brep, solids, split_into_cells, split_pieces, strictly_inside, unify, volume,
     volume_change, without_slivers, write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
@@ -365,7 +365,7 @@ class BRepEngine:
         # all cells are cut before any is changed: a failure leaves the IPW as it was
         try:
             try:
-                results = [(c, *self._subtract(c.shape, sweep.shape, c.volume, probes)) for c in touched]
+                results = self._cut_solids(touched, sweep.shape, probes) if touched else []
             except BooleanFailure as first:
                 # once more with the sweep's seams a quarter turn on: the kernel's failures seen came
                 # where a sweep's cylinder met the IPW near its own seam and the old cylinder's (a
@@ -373,9 +373,15 @@ class BRepEngine:
                 try:
                     other = swept_volume(tool, motion, self.options.sweep, seam + 0.5 * math.pi, open_start)
                 except Exception:  # noqa: BLE001 - the first failure is the one to report
-                    raise first from None
-                results = [(c, *self._subtract(c.shape, other.shape, c.volume, probes)) for c in touched]
-                sweep = replace(other, method=sweep.method)
+                    other = None
+                try:
+                    if other is None:
+                        raise first from None
+                    results = self._cut_solids(touched, other.shape, probes)
+                    sweep = replace(other, method=sweep.method)
+                except BooleanFailure:
+                    # and then a failing cell joined with a neighbour: its walls are ours, not the part's
+                    results = self._cut_solids(touched, sweep.shape, probes, join_avoiding=flat)
         except BooleanFailure as exc:
             saved = self._save_failure(index, sweep.shape)
             log.error("CL %d (%s): Boolean failed: %s; shapes saved to %s", index, move.source, exc, saved)
@@ -395,13 +401,14 @@ class BRepEngine:
             ceiling.clear(fp)
         for c in flat:
             c.swept[region.key] = min(region.z_tip, c.swept.get(region.key, math.inf))
-        results = [r for r in results if r[2] is not None]
+        results = [r for r in results if r.shape is not None]
         layered = [r for r in layered if r[3]]
         if not results and not layered:  # nothing removed: the tool only touches or misses the material
             return CutOutcome(idle, method=method, timings=timings), []
-        removed = sum(r[1] for r in results) + sum(r[2] for r in layered)
-        for cell, cut_volume, new_shape, _ in results:
-            cell.set(new_shape, cell.volume - cut_volume)
+        removed = sum(r.removed for r in results) + sum(r[2] for r in layered)
+        for r in results:
+            for cell, new_shape, new_volume in r.parts:
+                cell.set(new_shape, new_volume)
         for cell, layers, *_ in layered:
             cell.set_layers(layers)
         self.removed_total += removed
@@ -415,8 +422,9 @@ class BRepEngine:
             if results:
                 sweep_faces = list(faces(sweep.shape))
                 own = face_map(sweep.shape)
-            for _, _, new_shape, split in results:
-                kept = face_map(new_shape)  # the split also holds the sweep's pieces out of the IPW
+            for r in results:
+                kept = face_map(r.shape)  # the split also holds the sweep's pieces out of the IPW
+                split = r.split
                 origins = split.Origins()
                 for f in sweep_faces:
                     candidates.extend(g for g in map(TopoDS.Face, pieces(split, f))
@@ -431,8 +439,9 @@ class BRepEngine:
             outcome.status, outcome.reason = CLStatus.FAILED, f"contact analysis failed: {exc}"
         timings["contact"] = (time.perf_counter() - t2) * 1e3
         level_flat_cut = motion is move and cylinder_tool(tool) is not None
-        for cell, *_ in results:
-            self._maybe_merge(cell, level_flat_cut)
+        for r in results:
+            for cell, *_ in r.parts:
+                self._maybe_merge(cell, level_flat_cut)
         return outcome, contacts
 
     # -- internals ----------------------------------------------------------------------------
@@ -448,6 +457,89 @@ class BRepEngine:
                 (max(b[1][0] for b in boxes), max(b[1][1] for b in boxes)),
                 max(b[1][2] for b in boxes), self.options.ceiling_pixel)
         return self._ceiling
+
+    def _cut_solids(self, cells: list[Cell], sweep: TopoDS_Shape, probes: tuple[tuple[float, float, float], ...],
+                    join_avoiding: list[Cell] | None = None) -> list[SolidCut]:
+        """The Boolean of each solid cell with ``sweep``; raises :class:`BooleanFailure`.
+
+        ``join_avoiding`` (a list, maybe empty): a cell whose Boolean fails is tried once more joined
+        with a neighbour that is not in that list (see :meth:`_subtract_joined`).
+        """
+        out: list[SolidCut] = []
+        joined: set[int] = set()
+        for c in cells:
+            if id(c) in joined:
+                continue
+            try:
+                removed, new, split = self._subtract(c.shape, sweep, c.volume, probes)
+            except BooleanFailure:
+                if join_avoiding is None:
+                    raise
+                busy = {id(x) for x in join_avoiding} | joined
+                cut = self._subtract_joined(c, sweep, probes, busy)
+                joined.update(id(cell) for cell, *_ in cut.parts)
+                out = [r for r in out if not any(id(cell) in joined for cell, *_ in r.parts)]
+                out.append(cut)
+                continue
+            out.append(SolidCut([(c, new, c.volume - removed)], removed, new, split))
+        return out
+
+    def _subtract_joined(self, cell: Cell, sweep: TopoDS_Shape, probes: tuple[tuple[float, float, float], ...],
+                         busy: set[int]) -> SolidCut:
+        """The Boolean of ``cell`` joined with a neighbour sharing one of its walls, split back at
+        that wall; the first neighbour (not in ``busy``, by id) for which that works.
+
+        A cell's walls are where the grid put them, and a part's faces may meet them tangentially:
+        a slot's side on a column's wall, tangent to the hole a plunge left, made the General Fuse
+        find nothing inside the sweep and rebuild the cell 25 mm³ larger, at every fuzzy value and
+        with the seams turned. Joined with the cell beside it, the wall is gone and the Boolean
+        right (the layered cells, which cut in 2D, agree CL by CL); splitting back along the wall
+        is a plain Common with a box. The two parts must hold the joined result's volume (1e-9
+        relative + 1e-6 mm³) and neither more than its cell held.
+        """
+        last = "no neighbour shares a wall with the cell"
+        for n, axis, at in self._neighbours(cell):
+            if id(n) in busy:
+                continue
+            try:
+                joint = unify(fuse_all([cell.shape, n.shape]), cell.volume + n.volume)
+                removed, new, split = self._subtract(joint, sweep, cell.volume + n.volume, probes)
+                if new is None:
+                    return SolidCut([], 0.0, None, None)
+                below, above = halves(new, axis, at)
+            except (BooleanFailure, RuntimeError) as exc:
+                last = f"joined with the cell at {n.square}: {exc}"
+                continue
+            mine, theirs = (below, above) if cell.square[axis] < n.square[axis] else (above, below)
+            v_mine, v_theirs = (volume(p) if p is not None else 0.0 for p in (mine, theirs))
+            tol = 1e-9 * (cell.volume + n.volume) + 1e-6
+            if abs(v_mine + v_theirs - volume(new)) > tol or v_mine > cell.volume + tol or v_theirs > n.volume + tol:
+                last = f"joined with the cell at {n.square}: the parts split back do not hold its volume"
+                continue
+            return SolidCut([(cell, mine, v_mine), (n, theirs, v_theirs)], removed, new, split)
+        raise BooleanFailure(f"{last} (the cell alone failed)")
+
+    def _neighbours(self, cell: Cell) -> Iterator[tuple[Cell, int, float]]:
+        """(neighbour, axis, wall) for each cell with material whose column shares a wall (a
+        segment of positive length) with ``cell``'s: the wall is the plane ``x = wall`` (axis 0)
+        or ``y = wall`` (axis 1), mm."""
+        if cell.square is None:
+            return
+        x0, y0, size = cell.square
+        for n in self.cells:
+            if n is cell or n.empty or n.square is None:
+                continue
+            a0, b0, other = n.square
+            for axis, (lo, hi, nlo, nhi), (olo, ohi, onlo, onhi) in (
+                    (0, (x0, x0 + size, a0, a0 + other), (y0, y0 + size, b0, b0 + other)),
+                    (1, (y0, y0 + size, b0, b0 + other), (x0, x0 + size, a0, a0 + other))):
+                overlap = min(ohi, onhi) - max(olo, onlo)
+                if overlap <= 1e-9:
+                    continue
+                if abs(hi - nlo) <= 1e-9 * size:
+                    yield n, axis, hi
+                elif abs(nhi - lo) <= 1e-9 * size:
+                    yield n, axis, lo
 
     def _subtract(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float,
                   probes: tuple[tuple[float, float, float], ...] = ()):
@@ -710,6 +802,18 @@ def cl_sequence(toolpath: Toolpath, options: EngineOptions, default_tool: Millin
         if tool is None:
             raise InputError(f"no tool definition for T{move.tool}", move.source)
         yield index, move, tool, feed_angle
+
+
+@dataclass
+class SolidCut:
+    """What one 3D Boolean did: the cells it changes with their new material (None: all gone) and
+    volume (mm³), the volume it removed (mm³), and the new shape with the split's history, where
+    the contact faces are found (None when nothing was removed)."""
+
+    parts: list[tuple[Cell, TopoDS_Shape | None, float]]
+    removed: float
+    shape: TopoDS_Shape | None
+    split: object | None
 
 
 @dataclass

@@ -437,6 +437,16 @@ def quarters(solid: TopoDS_Shape, x: float, y: float) -> list[TopoDS_Shape | Non
     return out
 
 
+def halves(solid: TopoDS_Shape, axis: int, at: float) -> tuple[TopoDS_Shape | None, TopoDS_Shape | None]:
+    """``solid`` split by the plane ``x = at`` (``axis`` 0) or ``y = at`` (1), mm: the parts below
+    and above it, None where a part holds no material."""
+    lo, hi = bounding_box(solid)
+    lo, hi = [c - 1.0 for c in lo], [c + 1.0 for c in hi]
+    below, above = list(hi), list(lo)
+    below[axis] = above[axis] = at
+    return _in_box(solid, tuple(lo), tuple(below)), _in_box(solid, tuple(above), tuple(hi))
+
+
 def _in_box(solid: TopoDS_Shape, lo: Vec3, hi: Vec3) -> TopoDS_Shape | None:
     """The part of ``solid`` inside the box (faces merged), None if it holds no material."""
     from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox

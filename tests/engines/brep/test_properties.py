@@ -68,20 +68,29 @@ def test_every_cl_is_reported_in_order(y, depth, seg):
 
 
 def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, monkeypatch):
-    calls = {"n": 0}
-    real = BRepEngine._subtract
+    state = {"n": 0, "index": None, "target": None}
+    real, real_cut = BRepEngine._subtract, BRepEngine.cut
+
+    def cut(self, index, *args):
+        state["index"] = index
+        return real_cut(self, index, *args)
 
     def flaky(self, ipw, sweep, ipw_volume, probes=()):
-        calls["n"] += 1
-        if calls["n"] in (2, 3):  # the CL's Boolean, and its retry with the sweep's seams turned
+        # every Boolean of the CL of the second one fails: its retries with the sweep's seams turned
+        # and with a cell joined to a neighbour too
+        state["n"] += 1
+        if state["n"] == 2:
+            state["target"] = state["index"]
+        if state["index"] == state["target"]:
             raise engine_mod.BooleanFailure("simulated kernel failure")
         return real(self, ipw, sweep, ipw_volume, probes)
 
+    monkeypatch.setattr(BRepEngine, "cut", cut)
     monkeypatch.setattr(BRepEngine, "_subtract", flaky)
     eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0, layers=False))
     maps = list(eng.run(program(10, 2), STOCK))
     failed = [m for m in maps if m.status == CLStatus.FAILED]
-    assert len(failed) == 1
+    assert [m.cl_index for m in failed] == [state["target"]]
     assert "simulated kernel failure" in failed[0].reason
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"cl{failed[0].cl_index:06d}_ipw.brep",
                                                           f"cl{failed[0].cl_index:06d}_sweep.brep"]
