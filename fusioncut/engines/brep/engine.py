@@ -47,7 +47,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
-from fusioncut.engines.brep.contact import find_contact_faces, slice_intervals
+from fusioncut.engines.brep.contact import arc_contacts, find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import (
     CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, make_layer, solid_layers, stack_box, stack_solid,
     stack_volume,
@@ -416,9 +416,8 @@ class BRepEngine:
                              method=method, timings=timings)
         contacts = []
         try:
-            patches = [p for _, _, _, cuts in layered
-                       for p in contact_patches(cuts, region.face, move.end[:2], region.radius)]
-            candidates, areas = [f for f, _ in patches], [a for _, a in patches]
+            arcs = [p for _, _, _, cuts in layered for p in contact_patches(cuts, region.face, move.end[:2], region.radius)]
+            candidates = []
             if results:
                 sweep_faces = list(faces(sweep.shape))
                 own = face_map(sweep.shape)
@@ -429,7 +428,7 @@ class BRepEngine:
                 for f in sweep_faces:
                     candidates.extend(g for g in map(TopoDS.Face, pieces(split, f))
                                       if kept.Contains(g) and not on_old_boundary(g, origins, own))
-            contacts = find_contact_faces(candidates, tool, move.end, areas=areas)
+            contacts = arc_contacts(arcs, tool, move.end) + find_contact_faces(candidates, tool, move.end)
             flute = [c for c in contacts if c.surface.zone == "flute"]
             outcome.flute_area = sum(c.area for c in flute)
             outcome.shank_area = sum(c.area for c in contacts if c.surface.zone == "shank")

@@ -25,12 +25,12 @@ from dataclasses import dataclass
 
 from OCP.BOPAlgo import BOPAlgo_Builder
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Surface
-from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy, BRepBuilderAPI_MakeFace, BRepBuilderAPI_Transform
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy, BRepBuilderAPI_Transform
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepPrimAPI import BRepPrimAPI_MakePrism
 from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Cylinder, GeomAbs_Plane
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
-from OCP.gp import gp_Ax3, gp_Cylinder, gp_Dir, gp_Pnt, gp_Trsf, gp_Vec
+from OCP.gp import gp_Trsf, gp_Vec
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED
 from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
@@ -265,17 +265,16 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
 
 
 def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[float, float], radius: float,
-                    tol: float = 1e-6) -> list[tuple[TopoDS_Face, float]]:
-    """Faces on the tool's cylinder (axis through ``center``, ``radius`` mm) where the cut layers'
-    new boundaries come from the cutting region's edges on that circle: the engaged arcs, extruded
-    over each layer's height, each with its area (mm², exact: r × arc angle × height). An edge that
-    also comes from the layer's old boundary is a wall the tool only grazes (no chip), and is left
-    out, as the 3D engine leaves out such faces.
+                    tol: float = 1e-6) -> list[tuple[float, float, float, float]]:
+    """The engaged arcs on the tool's cylinder (axis through ``center``, ``radius`` mm): where the
+    cut layers' new boundaries come from the cutting region's edges on that circle, each over its
+    layer's height, as (start, span, z_lo, z_hi): the machine arc in rad (counter-clockwise from
+    +X) and the heights in mm. An edge that also comes from the layer's old boundary is a wall the
+    tool only grazes (no chip), and is left out, as the 3D engine leaves out such faces.
     """
     own = ShapeMap()
     TopExp.MapShapes_s(region, TopAbs_EDGE, own)
     on_circle = [e for e in edges(region) if _on_circle(e, center, radius, tol)]
-    ax = gp_Ax3(gp_Pnt(center[0], center[1], 0.0), gp_Dir(0.0, 0.0, 1.0), gp_Dir(1.0, 0.0, 0.0))
     patches = []
     for c in cuts:
         if c.new is None:
@@ -290,8 +289,7 @@ def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[fl
                 if on_old_boundary(g, origins, own):
                     continue
                 a0, a1 = _arc_angles(g, center)
-                patches.append((BRepBuilderAPI_MakeFace(gp_Cylinder(ax, radius), a0, a1, c.z_lo, c.z_hi).Face(),
-                                radius * (a1 - a0) * (c.z_hi - c.z_lo)))
+                patches.append((a0, a1 - a0, c.z_lo, c.z_hi))
     return patches
 
 
