@@ -137,7 +137,7 @@ def comparable(df):
 
 
 def medium_submission(name: str = "medium", segment: float = 1.0, checkpoint_every: int = 10) -> dict:
-    """The tiny job cut into short CLs (about 100) by a ball end mill: long enough to stop or kill
+    """The tiny job cut into short CLs (about 110 at 1 mm, 440 at 0.25 mm) by a ball end mill: to stop or kill
     mid-run, with checkpoints every ``checkpoint_every`` CLs so that a resumed run has something to
     resume from. (With the flat end mill the layered cells ran all its CLs before a stop landed.)"""
     job = {**TINY_JOB, "name": name, "tools": [{"number": 1, "kind": "ball", "diameter": 6, "flute_length": 12}],

@@ -60,7 +60,8 @@ def test_jobs_run_on_the_external_cluster_and_survive_a_service_restart(tmp_path
             assert info["scheduler"] == cluster and info["embedded_cluster"] is False
             tiny = c.post("/api/jobs", json=tiny_submission()).json()["id"]
             assert wait_for(c, tiny)["state"] == "done"
-            med = c.post("/api/jobs", json=medium_submission()).json()["id"]
+            # 0.25 mm CLs (~440, ~8 s of work): still running well after the service has stopped
+            med = c.post("/api/jobs", json=medium_submission(segment=0.25)).json()["id"]
             wait_for(c, med, until=lambda j: j["state"] == "running" and j["progress"]["done"] >= 10)
     finally:
         a.stop()

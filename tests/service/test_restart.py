@@ -12,6 +12,13 @@ from service_helpers import (KEY_B, ServiceProcess, comparable, medium_submissio
                              wait_for)
 
 
+# CLs of 0.25 mm: ~440 CLs, ~8 s of work on this machine, so that the service's stop (SIGTERM, the
+# monitor's last tick, the suspend flag) lands long before the job could end. With 2 mm CLs (57 CLs,
+# 1.1 s) the job once ran to its end while the first service was stopping, and the restarted
+# service found it done by its first attempt.
+SHORT_CLS = 0.25
+
+
 def _stop_mid_run(data, submission, at: int):
     """Start a service with one worker, submit a tiny job and ``submission`` (run in that order) and
     stop the service once ``submission`` has done ``at`` CLs."""
@@ -68,8 +75,8 @@ def test_restart_keeps_jobs(tmp_path):
 @pytest.mark.slow
 def test_restart_resumes_the_running_job_without_duplicates(tmp_path):
     data = tmp_path / "data"
-    # short CLs with a checkpoint every 5: small, yet long enough to be stopped half way
-    tiny, med = _stop_mid_run(data, medium_submission(segment=2.0, checkpoint_every=5), at=10)
+    # short CLs with a checkpoint every 5: something to resume from after 10 CLs
+    tiny, med = _stop_mid_run(data, medium_submission(segment=SHORT_CLS, checkpoint_every=5), at=10)
     b = ServiceProcess(data, workers=1)
     try:
         with b.client() as c:
@@ -83,8 +90,8 @@ def test_restart_resumes_the_running_job_without_duplicates(tmp_path):
 @pytest.mark.slow
 def test_resumed_job_equals_an_uninterrupted_run(tmp_path):
     data = tmp_path / "data"
-    sub = medium_submission()
-    _, med = _stop_mid_run(data, sub, at=15)
+    sub = medium_submission(segment=SHORT_CLS, checkpoint_every=20)
+    _, med = _stop_mid_run(data, sub, at=45)
     b = ServiceProcess(data, workers=1)
     try:
         with b.client() as c:
