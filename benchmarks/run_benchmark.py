@@ -1,7 +1,7 @@
 """Benchmark: FusionCut's fast path against the published method, in the same run on the same CLs.
 
-    python benchmarks/run_benchmark.py --quick --slicing 1 --workers ''   # ~1.5 min on 2 cores
-    python benchmarks/run_benchmark.py --quick          # ~5 min: 1 and 0.2 mm, 1 and 2 Dask workers
+    python benchmarks/run_benchmark.py --quick --slicing 1 --workers ''   # ~1 min on 2 cores
+    python benchmarks/run_benchmark.py --quick          # ~3 min: 1 and 0.2 mm, 1 and 2 Dask workers
     python benchmarks/run_benchmark.py                  # the full Titan-like program, ~25 min
 
 * **Program**: the Titan-like part of :mod:`titan_program`, written as G-code and read back through
@@ -147,7 +147,7 @@ def fmt(x, spec=".1f") -> str:
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--quick", action="store_true", help="a reduced program (~5 min; ~1.5 min with --slicing 1 --workers '')")
+    ap.add_argument("--quick", action="store_true", help="a reduced program (~3 min; ~1 min with --slicing 1 --workers '')")
     ap.add_argument("--tiny", action="store_true", help="a smoke-test size (seconds)")
     ap.add_argument("--slicing", default="1,0.2", help="slice heights in mm, comma separated")
     ap.add_argument("--baseline-cls", type=int, default=None, help="CLs per operation for the baseline")

@@ -28,7 +28,7 @@ def test_quick_program_workpiece_stays_small_past_the_helix_where_a_merge_left_a
     such merges were refused whole, the workpiece grew to 4,382 faces by CL 2199 and the Boolean
     median rose from 55–85 ms to 254 ms. Now the faces around the hole stay and the rest is merged."""
     from run_benchmark import WHOLE
-    from titan_program import QUICK, STOCK_MAX, STOCK_MIN, titan_program
+    from titan_program import STOCK_MAX, STOCK_MIN, ProgramSize, titan_program
 
     from fusioncut.engines.base import EngineOptions
     from fusioncut.engines.brep.engine import BRepEngine, cl_sequence
@@ -37,7 +37,8 @@ def test_quick_program_workpiece_stays_small_past_the_helix_where_a_merge_left_a
     from fusioncut.model import BoxStock, CLStatus
 
     program = tmp_path / "quick.nc"
-    program.write_text(titan_program(QUICK))
+    # the quick size when this was found (its second depth level holds that helix step)
+    program.write_text(titan_program(ProgramSize(slot_length=16.0, slots=2, depths=(-4.0, -8.0), finish_rows=4, contours=1)))
     engine = BRepEngine(EngineOptions(**WHOLE))  # the hole was found on the whole workpiece
     engine.start(BoxStock(STOCK_MIN, STOCK_MAX))
     most_faces = 0

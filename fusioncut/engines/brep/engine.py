@@ -160,6 +160,7 @@ class BRepEngine:
     _ceiling_cells: list[Cell] | None = field(default=None, init=False, repr=False)
     # squares whose split lost volume: not tried again (a resumed run or a worker may try once more)
     _unsplittable: set[tuple[float, float, float]] = field(default_factory=set, init=False, repr=False)
+    _last_sweep: tuple[TopoDS_Shape, float] | None = field(default=None, init=False, repr=False)
     # where the last CL's tool left no material, or None: (x, y, z_lo, z_hi, radius) mm of the
     # cylinder a cylindrical tool emptied (radius 0 for other tools) and the tool's repr; a cut
     # starting there may leave that tool out of its sweep (see _starts_cleared)
@@ -540,6 +541,12 @@ class BRepEngine:
                 elif abs(nhi - lo) <= 1e-9 * size:
                     yield n, axis, lo
 
+    def _sweep_volume(self, sweep: TopoDS_Shape) -> float:
+        """The volume of ``sweep`` (mm³), integrated once for all the cells a CL cuts."""
+        if self._last_sweep is None or not self._last_sweep[0].IsSame(sweep):
+            self._last_sweep = (sweep, volume(sweep))
+        return self._last_sweep[1]
+
     def _subtract(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float,
                   probes: tuple[tuple[float, float, float], ...] = ()):
         """(removed volume, new IPW or None when nothing is removed, the split with its history).
@@ -558,7 +565,6 @@ class BRepEngine:
         and was reported as air.
         """
         last = "unknown"
-        sweep_volume = None  # only needed once something is removed
         first = self._first_fuzzy
         threads = self.options.kernel_threads
         for fuzzy in (first, *self.options.fuzzy_retries):
@@ -582,7 +588,7 @@ class BRepEngine:
                     last = f"nothing removed, yet the IPW holds the point {inside} of the tool at its end (fuzzy={fuzzy})"
                     continue
                 return 0.0, None, None
-            sweep_volume = volume(sweep) if sweep_volume is None else sweep_volume
+            sweep_volume = self._sweep_volume(sweep)
             if removed > sweep_volume * (1 + 1e-6) + 1e-9:
                 # more material than the tool swept: the intersection went wrong, not the physics
                 last = f"removed {removed:.6g} mm³ > swept {sweep_volume:.6g} mm³ (fuzzy={fuzzy})"
