@@ -3,6 +3,8 @@ layered engine against the all-solid engine on random flat-end-mill programs."""
 from __future__ import annotations
 
 import math
+import tempfile
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -188,7 +190,9 @@ def _layered_equals_solid(points, arc, cell_size):
     program = Toolpath(tuple(moves), {1: FlatEndMill(8.0, 25.0, number=1)})
     runs = {}
     for layers in (True, False):
-        engine = BRepEngine(EngineOptions(max_segment_length=4.0, cell_size=cell_size, layers=layers))
+        # a failed CL's shapes go to a temporary folder, not into the folder the tests run in
+        engine = BRepEngine(EngineOptions(max_segment_length=4.0, cell_size=cell_size, layers=layers,
+                                          failure_dir=Path(tempfile.gettempdir()) / "fusioncut-test-failures"))
         runs[layers] = list(engine.run(program, BLOCK))
         assert not [m for m in runs[layers] if m.status == CLStatus.FAILED]
         assert abs(engine.stock_volume - engine.ipw_volume - engine.removed_total) <= 1e-9 * engine.stock_volume
