@@ -695,7 +695,7 @@ class BRepEngine:
         self.cells[k:k + 1] = new
 
     def _save_failure(self, index: int, sweep: TopoDS_Shape) -> str:
-        folder = self.options.failure_dir or Path("fusioncut-failures")
+        folder = Path(self.options.failure_dir or "fusioncut-failures")
         folder.mkdir(parents=True, exist_ok=True)
         write_brep(self.ipw, str(folder / f"cl{index:06d}_ipw.brep"))
         write_brep(sweep, str(folder / f"cl{index:06d}_sweep.brep"))

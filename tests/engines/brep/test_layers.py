@@ -125,6 +125,12 @@ KNOWN_SOLID_FAILURES = [
     # Boolean (fuzzy 1e-6, across the y = 15 wall) leaves 3.9e-5 mm³ of volume noise, 3.3e-9 of
     # the stock (1.1e-5 with the same CL cut from the layered engine's state made solid)
     ([(34.0, 4.5, -2.5), (36.5, 24.5, -1.0)], 4.0, 15.0),
+    # found by a random search of 120 programs: a plunge whose hole is tangent to the stock's wall
+    # x = 0, then a line out of it; the solid cell's Booleans of CLs 2-4 find nothing removed while
+    # the point ahead of the tool lies in material, at every fuzzy value, with the seams turned and
+    # joined with either neighbour (the wall is the part's): FAILED CLs (before the front probe CL 2
+    # was silently air, the end point on its axis lying in the hole)
+    ([(4.0, 8.0, -2.5), (11.0, 4.0, -2.5)], 4.0, 15.0),
 ]
 
 
