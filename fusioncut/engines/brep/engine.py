@@ -367,20 +367,22 @@ class BRepEngine:
         try:
             try:
                 results = self._cut_solids(touched, sweep.shape, probes) if touched else []
-            except BooleanFailure as first:
+            except BooleanFailure:
+                results = None
                 # once more with the sweep's seams a quarter turn on: the kernel's failures seen came
                 # where a sweep's cylinder met the IPW near its own seam and the old cylinder's (a
-                # ball plunge beside the last one failed with every fuzzy value, and was right so)
-                try:
-                    other = swept_volume(tool, motion, self.options.sweep, seam + 0.5 * math.pi, open_start)
-                except Exception:  # noqa: BLE001 - the first failure is the one to report
-                    other = None
-                try:
-                    if other is None:
-                        raise first from None
-                    results = self._cut_solids(touched, other.shape, probes)
+                # ball plunge beside the last one failed with every fuzzy value, and was right so);
+                # then, for a sweep that left the tool at its start out, with that tool in (a line
+                # out of a plunge's hole tangent to the stock's wall found nothing removed)
+                for turn, start_left_out in ((0.5 * math.pi, open_start), *(((0.0, False),) if open_start else ())):
+                    try:
+                        other = swept_volume(tool, motion, self.options.sweep, seam + turn, start_left_out)
+                        results = self._cut_solids(touched, other.shape, probes)
+                    except Exception:  # noqa: BLE001 - a sweep not built, or its Booleans failed too
+                        continue
                     sweep = replace(other, method=sweep.method)
-                except BooleanFailure:
+                    break
+                if results is None:
                     # and then a failing cell joined with a neighbour: its walls are ours, not the part's
                     results = self._cut_solids(touched, sweep.shape, probes, join_avoiding=flat)
         except BooleanFailure as exc:

@@ -12,6 +12,7 @@ from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut
 from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.brep import engine as engine_mod
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.layers import cut_stack, solid_layers, stack_solid, stack_volume
 from fusioncut.engines.brep.occ import MERGE_TOLERANCE, area, max_tolerance, volume
@@ -120,17 +121,11 @@ def test_layered_cells_equal_solid_cells(points, arc, cell_size):
 
 KNOWN_SOLID_FAILURES = [
     # the solid engine's CLs 2-4 found nothing removed (first silently air or wrong volumes,
-    # conservation 3.2e-5; then FAILED: a point ahead of the tool's axis lay in material); with a
-    # failing cell joined to its neighbour the maps equal the layered engine's, but a later CL's
-    # Boolean (fuzzy 1e-6, across the y = 15 wall) leaves 3.9e-5 mm³ of volume noise, 3.3e-9 of
+    # conservation 3.2e-5; then FAILED: a point ahead of the tool's axis lay in material); swept
+    # with the tool at their start in, the maps equal the layered engine's, but a later CL's
+    # Boolean (fuzzy 1e-6, across the y = 15 wall) leaves 3.1e-5 mm³ of volume noise, 2.6e-9 of
     # the stock (1.1e-5 with the same CL cut from the layered engine's state made solid)
     ([(34.0, 4.5, -2.5), (36.5, 24.5, -1.0)], 4.0, 15.0),
-    # found by a random search of 120 programs: a plunge whose hole is tangent to the stock's wall
-    # x = 0, then a line out of it; the solid cell's Booleans of CLs 2-4 find nothing removed while
-    # the point ahead of the tool lies in material, at every fuzzy value, with the seams turned and
-    # joined with either neighbour (the wall is the part's): FAILED CLs (before the front probe CL 2
-    # was silently air, the end point on its axis lying in the hole)
-    ([(4.0, 8.0, -2.5), (11.0, 4.0, -2.5)], 4.0, 15.0),
 ]
 
 
@@ -166,6 +161,26 @@ def test_halves_split_a_solid_at_a_wall():
     assert volume(below) == pytest.approx(40 * 12 * 10, rel=1e-12) and volume(above) == pytest.approx(40 * 18 * 10, rel=1e-12)
     below, above = halves(block, 0, 45.0)
     assert volume(below) == pytest.approx(BLOCK.volume, rel=1e-12) and above is None
+
+
+def test_a_line_out_of_a_plunge_hole_tangent_to_the_stock_wall_is_cut_with_the_start_swept_in(monkeypatch):
+    """Found by a random search of 120 programs: the plunge's hole is tangent to the stock's wall
+    x = 0; the lines out of it, swept without the tool at their start (the last CL emptied it),
+    found nothing removed while the point ahead of the tool lay in material, at every fuzzy value,
+    with the seams turned and joined with either neighbour (before the front probe, CL 2 was
+    silently air). Swept with the tool at the start in, they cut what the layered cells cut."""
+    calls = []
+    real = engine_mod.swept_volume
+
+    def spy(tool, motion, method="exact", seam=0.0, open_start=False):
+        calls.append((seam, open_start))
+        return real(tool, motion, method, seam, open_start)
+
+    monkeypatch.setattr(engine_mod, "swept_volume", spy)
+    _layered_equals_solid([(4.0, 8.0, -2.5), (11.0, 4.0, -2.5)], 4.0, 15.0)
+    retried = [k for k in range(len(calls) - 2) if calls[k][1] and calls[k + 1][1] and not calls[k + 2][1]
+               and calls[k + 1][0] == pytest.approx(calls[k][0] + math.pi / 2) and calls[k + 2][0] == calls[k][0]]
+    assert retried  # open, seams turned, then the start swept in
 
 
 def test_neighbours_share_a_wall_of_positive_length():
