@@ -126,6 +126,11 @@ KNOWN_SOLID_FAILURES = [
     # Boolean (fuzzy 1e-6, across the y = 15 wall) leaves 3.1e-5 mm³ of volume noise, 2.6e-9 of
     # the stock (1.1e-5 with the same CL cut from the layered engine's state made solid)
     ([(34.0, 4.5, -2.5), (36.5, 24.5, -1.0)], 4.0, 15.0),
+    # found by a random search of 160 programs: a plunge split into CLs, its hole tangent to the
+    # stock's wall x = 0; the second step down finds nothing removed while the point on its axis
+    # lies in material, also with the seams turned and joined with a neighbour: a FAILED CL (the
+    # probe on the axis finds it). The next thing to try: sweep only the part below the last tip
+    ([(4.0, 10.5, -4.0), (40.0, 2.0, -1.0), (34.5, 21.5, -2.5), (2.5, 8.0, -1.0), (17.5, 28.5, -1.0)], None, 15.0),
 ]
 
 
