@@ -129,7 +129,8 @@ KNOWN_SOLID_FAILURES = [
     # found by a random search of 160 programs: a plunge split into CLs, its hole tangent to the
     # stock's wall x = 0; the second step down finds nothing removed while the point on its axis
     # lies in material, also with the seams turned and joined with a neighbour: a FAILED CL (the
-    # probe on the axis finds it). The next thing to try: sweep only the part below the last tip
+    # probe on the axis finds it). Sweeping only the part below the last CL's tip (tried) fails too:
+    # the new cylinder is tangent to the same wall
     ([(4.0, 10.5, -4.0), (40.0, 2.0, -1.0), (34.5, 21.5, -2.5), (2.5, 8.0, -1.0), (17.5, 28.5, -1.0)], None, 15.0),
 ]
 
