@@ -160,6 +160,7 @@ class BRepEngine:
     _ceiling_cells: list[Cell] | None = field(default=None, init=False, repr=False)
     # squares whose split lost volume: not tried again (a resumed run or a worker may try once more)
     _unsplittable: set[tuple[float, float, float]] = field(default_factory=set, init=False, repr=False)
+    # the last CL's sweep and its volume (mm³): see _sweep_volume
     _last_sweep: tuple[TopoDS_Shape, float] | None = field(default=None, init=False, repr=False)
     # where the last CL's tool left no material, or None: (x, y, z_lo, z_hi, radius) mm of the
     # cylinder a cylindrical tool emptied (radius 0 for other tools) and the tool's repr; a cut
@@ -426,10 +427,9 @@ class BRepEngine:
                 own = face_map(sweep.shape)
             for r in results:
                 kept = face_map(r.shape)  # the split also holds the sweep's pieces out of the IPW
-                split = r.split
-                origins = split.Origins()
+                origins = r.split.Origins()
                 for f in sweep_faces:
-                    candidates.extend(g for g in map(TopoDS.Face, pieces(split, f))
+                    candidates.extend(g for g in map(TopoDS.Face, pieces(r.split, f))
                                       if kept.Contains(g) and not on_old_boundary(g, origins, own))
             contacts = arc_contacts(arcs, tool, move.end) + find_contact_faces(candidates, tool, move.end)
             flute = [c for c in contacts if c.surface.zone == "flute"]
@@ -778,6 +778,8 @@ def _segment_box_distance(a: tuple[float, float], b: tuple[float, float], box: t
         return math.hypot(max(x0 - p[0], 0.0, p[0] - x1), max(y0 - p[1], 0.0, p[1] - y1))
 
     def to_segment(p):
+        # ceiling's segment distance in scalars: its numpy form costs 10 µs more a call, and this
+        # runs for each candidate cell of each CL
         ux, uy = b[0] - a[0], b[1] - a[1]
         L2 = ux * ux + uy * uy
         t = 0.0 if L2 == 0.0 else min(1.0, max(0.0, ((p[0] - a[0]) * ux + (p[1] - a[1]) * uy) / L2))
