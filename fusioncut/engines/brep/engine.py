@@ -49,8 +49,8 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
 from fusioncut.engines.brep.contact import arc_contacts, find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import (
-    CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, make_layer, solid_layers, stack_box, stack_solid,
-    stack_volume,
+    CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, layer_from_state, outline, solid_layers, stack_box,
+    stack_solid, stack_volume,
 )
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, children, compound, count_faces, face_map, faces, fuse_all, halves, intersections,
@@ -227,7 +227,7 @@ class BRepEngine:
         os.replace(folder / (name + ".tmp"), folder / name)
         state = {"next_cl": next_cl, "ipw": name, "stock_volume": self.stock_volume,
                  "removed_total": self.removed_total, "faces_at_merge": [c.faces_at_merge for c in self.cells],
-                 "layers": [[(la.z_lo, la.z_hi) for la in c.layers] if c.layers else None for c in self.cells],
+                 "layers": [[la.state() for la in c.layers] if c.layers else None for c in self.cells],
                  "squares": [c.square for c in self.cells], "cleared": self.cleared}
         (folder / "state.json.tmp").write_text(json.dumps(state))
         os.replace(folder / "state.json.tmp", folder / "state.json")
@@ -247,10 +247,10 @@ class BRepEngine:
         self.cells = []
         heights = state.get("layers") or [None] * len(state["faces_at_merge"])
         squares = state.get("squares") or [None] * len(state["faces_at_merge"])
-        for child, merged, zs, square in zip(children(ipw), state["faces_at_merge"], heights, squares):
+        for child, merged, saved, square in zip(children(ipw), state["faces_at_merge"], heights, squares):
             cell = Cell(None, None, merged, square=tuple(square) if square else None)
-            if zs:
-                cell.set_layers(tuple(make_layer(z0, z1, region) for region, (z0, z1) in zip(children(child), zs)))
+            if saved:
+                cell.set_layers(tuple(layer_from_state(region, la) for region, la in zip(children(child), saved)))
             else:
                 cell.set(child)
             self.cells.append(cell)
@@ -394,7 +394,7 @@ class BRepEngine:
         try:
             fuzzies = (self.options.fuzzy or 0.0, *self.options.fuzzy_retries)
             layered = [(c, *cut_stack(c.layers, region.face, region.z_tip, region.z_top, fuzzies,
-                                      c.swept.get(region.key))) for c in flat]
+                                      c.swept.get(region.key), region.outline)) for c in flat]
         except RegionCutFailure as exc:
             log.error("CL %d (%s): layered Boolean failed: %s", index, move.source, exc)
             return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
@@ -619,7 +619,7 @@ class BRepEngine:
         # everything cylinder_region builds the face from: equal keys, the same face
         key = (cyl[0], open_start, type(at_zero).__name__, at_zero.start, at_zero.end,
                getattr(at_zero, "center", None), getattr(at_zero, "clockwise", None), getattr(at_zero, "turns", None))
-        return CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1], key)
+        return CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1], key, outline(face))
 
     def _maybe_merge(self, cell: Cell, level_flat_cut: bool) -> None:
         """After a solid cell was cut: merge its faces when they grew by ``merge_growth``; then,

@@ -20,52 +20,107 @@ are joined; a layer that loses nothing to a cut means the layers above lose noth
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
 from OCP.BOPAlgo import BOPAlgo_Builder
+from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Surface
-from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy, BRepBuilderAPI_Transform
+from OCP.BRepBuilderAPI import (
+    BRepBuilderAPI_Copy, BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeVertex,
+    BRepBuilderAPI_MakeWire, BRepBuilderAPI_Transform,
+)
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepPrimAPI import BRepPrimAPI_MakePrism
-from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Cylinder, GeomAbs_Plane
+from OCP.BRepTools import BRepTools_WireExplorer
+from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Cylinder, GeomAbs_Line, GeomAbs_Plane
 from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
-from OCP.gp import gp_Trsf, gp_Vec
-from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED
-from OCP.TopExp import TopExp
+from OCP.gp import gp_Ax2, gp_Circ, gp_Dir, gp_Lin, gp_Pln, gp_Pnt, gp_Trsf, gp_Vec
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED, TopAbs_WIRE
+from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 
+from fusioncut.engines.brep import planar
 from fusioncut.engines.brep.occ import (
     area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, on_old_boundary,
     pieces, split_pieces, unify, volume,
 )
 
+log = logging.getLogger(__name__)
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
 Z_SNAP = 1e-7  # mm: a tip this close to a layer's boundary stops on it (no layer thinner than this)
+EDGE_TOLERANCE = 1e-7  # mm: OCCT's tolerance of a new edge (Precision::Confusion)
 
 
 class RegionCutFailure(Exception):
     pass
 
 
-@dataclass(frozen=True)
 class Layer:
-    """Material between ``z_lo`` and ``z_hi`` (mm): ``region`` (planar faces at z = 0) extruded."""
+    """Material between ``z_lo`` and ``z_hi`` (mm): a planar region at z = 0 extruded, its ``area``
+    (mm²) and bounding ``box`` (z = 0, widened by the edges' tolerance). The region is held as
+    B-Rep faces (``region``), as a closed-form outline of lines and arcs (``outline``, see
+    :mod:`fusioncut.engines.brep.planar`), or both: each is made from the other when first asked
+    for (``outline`` is None for a region with other curves)."""
 
-    z_lo: float
-    z_hi: float
-    region: TopoDS_Shape
-    area: float  # mm²
-    box: Box  # the region's bounding box (z = 0)
+    __slots__ = ("z_lo", "z_hi", "area", "box", "_shared")
+
+    def __init__(self, z_lo: float, z_hi: float, area: float, box: Box, shared: list) -> None:
+        self.z_lo, self.z_hi, self.area, self.box = z_lo, z_hi, area, box
+        self._shared = shared  # [faces or None, outline or None or False (none)]: shared by the layers of one region
+
+    @property
+    def region(self) -> TopoDS_Shape:
+        if self._shared[0] is None:
+            self._shared[0] = outline_faces(self._shared[1])
+        return self._shared[0]
+
+    @property
+    def outline(self) -> planar.Region | None:
+        if self._shared[1] is None:
+            self._shared[1] = outline(self._shared[0]) or False
+        return self._shared[1] or None
+
+    def between(self, z_lo: float, z_hi: float) -> Layer:
+        """The same region between other heights (mm)."""
+        return Layer(z_lo, z_hi, self.area, self.box, self._shared)
 
     @property
     def volume(self) -> float:
         return self.area * (self.z_hi - self.z_lo)
 
 
+    def state(self) -> list:
+        """What :func:`layer_from_state` needs besides the region's faces, as JSON values (floats
+        round-trip exactly): a resumed run must cut the very same numbers."""
+        known = self._shared[1]
+        loops = [[[type(e).__name__, *e] for e in loop] for loop in known] if known else known
+        return [self.z_lo, self.z_hi, self.area, [*self.box[0], *self.box[1]], loops]
+
+
+def layer_from_state(region: TopoDS_Shape, state: list) -> Layer:
+    """The layer :meth:`Layer.state` saved, its region's faces read back (heights alone, as older
+    checkpoints saved them: measured again from the faces)."""
+    if len(state) == 2:
+        return make_layer(state[0], state[1], region)
+    z_lo, z_hi, region_area, box, loops = state
+    kinds = {"Line": planar.Line, "Arc": planar.Arc}
+    known = tuple(tuple(kinds[k](*v) for k, *v in loop) for loop in loops) if loops else loops
+    return Layer(z_lo, z_hi, region_area, (tuple(box[:3]), tuple(box[3:])), [region, known])
+
+
 def make_layer(z_lo: float, z_hi: float, region: TopoDS_Shape, region_area: float | None = None) -> Layer:
-    return Layer(z_lo, z_hi, region, area(region) if region_area is None else region_area, bounding_box(region))
+    return Layer(z_lo, z_hi, area(region) if region_area is None else region_area, bounding_box(region), [region, None])
+
+
+def outline_layer(z_lo: float, z_hi: float, region: planar.Region, region_area: float) -> Layer:
+    """A layer whose region is an outline; its box is the outline's, widened by the tolerance
+    (1e-7 mm) the kernel gives the edges of its faces, as those faces' box would be."""
+    x0, y0, x1, y1 = planar.region_box(region)
+    t = EDGE_TOLERANCE
+    return Layer(z_lo, z_hi, region_area, ((x0 - t, y0 - t, -t), (x1 + t, y1 + t, t)), [None, region])
 
 
 def _moved(shape: TopoDS_Shape, dz: float) -> TopoDS_Shape:
@@ -164,33 +219,42 @@ class CuttingRegion:
     z_tip: float
     z_top: float
     key: tuple = ()
+    outline: planar.Region | None = None  # the face as lines and arcs (None: it has other curves)
 
 
 @dataclass(frozen=True)
 class LayerCut:
-    """One layer cut by a region: the layer after the cut (None when all of it went) and the split
-    of its region by the cutting region, with its history (for the contact edges)."""
+    """One layer cut by a region: the layer after the cut (None when all of it went), and how the
+    cutting region's boundary came into the new one: the kernel's split with its history, or, cut
+    in closed form, the pieces of the cutting region's edges on the new boundary (``kept``)."""
 
     z_lo: float
     z_hi: float
     new: Layer | None
-    op: BOPAlgo_Builder
+    op: BOPAlgo_Builder | None = None
+    kept: tuple[planar.Edge, ...] = ()
 
 
 def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_top: float,
               fuzzy_values: tuple[float, ...], clear_from: float | None = None,
+              region_outline: planar.Region | None | bool = True,
               ) -> tuple[tuple[Layer, ...], float, list[LayerCut]]:
     """The stack after removing the prism of ``region`` (z = 0) from ``z_tip`` to ``z_top`` (mm).
 
     Returns (new layers, removed volume in mm³, the cuts of the layers that lost material).
     ``z_top`` must reach the stack's top (the regions stay nested). ``clear_from``: a height (mm)
     above which this very region was already taken from the stack (material only ever goes, so
-    layers from there up lose nothing and are not cut). Raises :class:`RegionCutFailure` when a
-    2D Boolean fails with every fuzzy value.
+    layers from there up lose nothing and are not cut). ``region_outline``: ``region`` as lines
+    and arcs (True: made here; None or False: cut with the kernel's General Fuse alone). Each layer
+    whose region is lines and arcs too is cut in closed form (:func:`planar.difference`), else, or
+    where that cannot decide, by the General Fuse. Raises :class:`RegionCutFailure` when a 2D
+    Boolean fails with every fuzzy value.
     """
     if z_top < layers[-1].z_hi - Z_SNAP:
         raise ValueError("a layered cut must reach above the stack")
     region_box = bounding_box(region)
+    if region_outline is True:
+        region_outline = outline(region)
     # snap the tip to a boundary it nearly touches: a Z_SNAP-thin layer is noise, not material
     for la in layers:
         for z in (la.z_lo, la.z_hi):
@@ -205,21 +269,30 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_t
                 or (clear_from is not None and la.z_lo >= clear_from)):
             out.append(la)
             continue
-        new_region, new_area, op = _cut_region(la.region, region, la.area, fuzzy_values)
-        if new_region is None:
+        z_lo = max(la.z_lo, z_tip)
+        closed = _closed_form_cut(la, region_outline) if region_outline else None
+        if closed is not None:
+            new_outline, new_area, kept = closed
+            op = None
+            new = outline_layer(z_lo, la.z_hi, new_outline, new_area) if new_outline else None
+        else:
+            new_region, new_area, op = _cut_region(la.region, region, la.area, fuzzy_values)
+            kept = ()
+            new = None
+            if new_region is not None and any(True for _ in faces(new_region)):
+                new = make_layer(z_lo, la.z_hi, new_region, new_area)
+        if new_area is None:
             untouched_above = True  # nested regions: nothing lost here, nothing lost above
             out.append(la)
             continue
         if la.z_lo < z_tip:
-            out.append(Layer(la.z_lo, z_tip, la.region, la.area, la.box))
-        z_lo = max(la.z_lo, z_tip)
-        new = make_layer(z_lo, la.z_hi, new_region, new_area) if any(True for _ in faces(new_region)) else None
+            out.append(la.between(la.z_lo, z_tip))
         if new is not None and new.area <= 1e-12:
             new = None
         removed += (la.area - (new.area if new else 0.0)) * (la.z_hi - z_lo)
         if new is not None:
             out.append(new)
-        cuts.append(LayerCut(z_lo, la.z_hi, new, op))
+        cuts.append(LayerCut(z_lo, la.z_hi, new, op, kept))
     return _joined(out), removed, cuts
 
 
@@ -229,9 +302,34 @@ def _joined(layers: list[Layer]) -> tuple[Layer, ...]:
     for la in layers:
         if out and abs(out[-1].z_hi - la.z_lo) < Z_SNAP and abs(out[-1].area - la.area) <= 1e-9 * max(1.0, la.area):
             below = out.pop()
-            la = Layer(below.z_lo, la.z_hi, la.region, la.area, la.box)
+            la = la.between(below.z_lo, la.z_hi)
         out.append(la)
     return tuple(out)
+
+
+def _closed_form_cut(layer: Layer, tool: planar.Region):
+    """(new outline, its area in mm², the tool's edge pieces on it) of ``layer`` minus ``tool`` in
+    closed form; (None, None, ()) when nothing is lost; None when the layer's region is not lines
+    and arcs, or the configuration is too nearly degenerate to decide here (the General Fuse then).
+
+    The outline's area and the area lost must tile the layer's (1e-6 mm² + 1e-6 relative: its area
+    may come from the kernel's integration), and the loss cannot exceed the tool's region.
+    """
+    old = layer.outline
+    if old is None:
+        return None
+    try:
+        d = planar.difference(old, tool)
+    except planar.Degenerate as exc:
+        log.debug("layer cut by the General Fuse: %s", exc)
+        return None
+    if (d.area < -1e-9 or d.lost < -1e-9 or d.lost > planar.region_area(tool) + 1e-9
+            or abs(layer.area - d.area - d.lost) > 1e-6 + 1e-6 * layer.area):
+        log.debug("layer cut by the General Fuse: closed-form areas %.12g + %.12g for %.12g", d.area, d.lost, layer.area)
+        return None
+    if d.lost <= 1e-12 * max(1.0, layer.area):
+        return None, None, ()
+    return d.region, d.area, d.b_pieces
 
 
 def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_values: tuple[float, ...]):
@@ -269,16 +367,25 @@ def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[fl
     """The engaged arcs on the tool's cylinder (axis through ``center``, ``radius`` mm): where the
     cut layers' new boundaries come from the cutting region's edges on that circle, each over its
     layer's height, as (start, span, z_lo, z_hi): the machine arc in rad (counter-clockwise from
-    +X) and the heights in mm. An edge that also comes from the layer's old boundary is a wall the
-    tool only grazes (no chip), and is left out, as the 3D engine leaves out such faces.
+    +X, the start in (-π, π]) and the heights in mm. An edge that also comes from the layer's old
+    boundary is a wall the tool only grazes (no chip), and is left out, as the 3D engine leaves out
+    such faces.
     """
-    own = ShapeMap()
-    TopExp.MapShapes_s(region, TopAbs_EDGE, own)
-    on_circle = [e for e in edges(region) if _on_circle(e, center, radius, tol)]
     patches = []
+    on_circle = None
     for c in cuts:
         if c.new is None:
             continue
+        if c.op is None:
+            for e in c.kept:
+                if type(e) is planar.Arc and abs(e.r - radius) < tol and math.hypot(e.cx - center[0], e.cy - center[1]) < tol:
+                    x, y = (e.x0, e.y0) if e.a1 > e.a0 else (e.x1, e.y1)
+                    patches.append((math.atan2(y - e.cy, x - e.cx), abs(e.a1 - e.a0), c.z_lo, c.z_hi))
+            continue
+        if on_circle is None:
+            own = ShapeMap()
+            TopExp.MapShapes_s(region, TopAbs_EDGE, own)
+            on_circle = [e for e in edges(region) if _on_circle(e, center, radius, tol)]
         kept = ShapeMap()
         TopExp.MapShapes_s(c.new.region, TopAbs_EDGE, kept)
         origins = c.op.Origins()
@@ -316,3 +423,91 @@ def _arc_angles(edge, center: tuple[float, float]) -> tuple[float, float]:
     if (am - a0) % (2 * math.pi) > span:  # the arc runs clockwise from a0: the same arc from a1
         a0, span = a1, (a0 - a1) % (2 * math.pi)
     return a0, a0 + span
+
+
+# -- regions as closed-form outlines (fusioncut.engines.brep.planar) and back ----------------
+
+def outline(region: TopoDS_Shape) -> planar.Region | None:
+    """The region's loops as lines and arcs (region on their left), or None when an edge is
+    another curve or a face does not lie in a horizontal plane."""
+    loops = []
+    for f in faces(region):
+        s = BRepAdaptor_Surface(f, False)
+        if s.GetType() != GeomAbs_Plane or abs(abs(s.Plane().Axis().Direction().Z()) - 1.0) > 1e-12:
+            return None
+        face_loops = []
+        wires = TopExp_Explorer(f, TopAbs_WIRE)
+        while wires.More():
+            loop = []
+            it = BRepTools_WireExplorer(TopoDS.Wire(wires.Current()), f)
+            while it.More():
+                e = it.Current()
+                c = BRepAdaptor_Curve(e)
+                p0, p1 = BRep_Tool.Pnt_s(TopExp.FirstVertex_s(e, True)), BRep_Tool.Pnt_s(TopExp.LastVertex_s(e, True))
+                t = c.GetType()
+                if t == GeomAbs_Line:
+                    loop.append(planar.Line(p0.X(), p0.Y(), p1.X(), p1.Y()))
+                elif t == GeomAbs_Circle:
+                    circ = c.Circle()
+                    o = circ.Location()
+                    ccw = (circ.Axis().Direction().Z() > 0) == (e.Orientation() != TopAbs_REVERSED)
+                    span = c.LastParameter() - c.FirstParameter()
+                    a0 = math.atan2(p0.Y() - o.Y(), p0.X() - o.X())
+                    loop.append(planar.Arc(p0.X(), p0.Y(), p1.X(), p1.Y(), o.X(), o.Y(), circ.Radius(),
+                                           a0, a0 + span if ccw else a0 - span))
+                else:
+                    return None
+                it.Next()
+            face_loops.append(tuple(loop))
+            wires.Next()
+        if sum(planar.edge_area(e) for loop in face_loops for e in loop) < 0:
+            face_loops = [tuple(planar.reversed_edge(e) for e in reversed(loop)) for loop in face_loops]
+        loops.extend(face_loops)
+    return tuple(loops)
+
+
+def outline_faces(region: planar.Region) -> TopoDS_Shape:
+    """The planar faces (z = 0) of an outline: each counter-clockwise loop a face, with the
+    clockwise loops inside it (the smallest that holds them) as its holes."""
+    outers = [loop for loop in region if sum(planar.edge_area(e) for e in loop) > 0]
+    holes: dict[int, list] = {k: [] for k in range(len(outers))}
+    for loop in region:
+        if sum(planar.edge_area(e) for e in loop) > 0:
+            continue
+        x, y = planar.edge_point(loop[0])
+        owners = [k for k, o in enumerate(outers) if planar.winding(list(o), x, y) > 0]
+        if not owners:
+            raise RuntimeError("a hole of the region lies in none of its outer loops")
+        holes[min(owners, key=lambda k: planar.region_area((outers[k],)))].append(loop)
+    vertices: dict[tuple[float, float], object] = {}
+
+    def vertex(x: float, y: float):
+        v = vertices.get((x, y))
+        if v is None:
+            v = vertices[(x, y)] = BRepBuilderAPI_MakeVertex(gp_Pnt(x, y, 0.0)).Vertex()
+        return v
+
+    def wire(loop):
+        mk = BRepBuilderAPI_MakeWire()
+        for e in loop:
+            v0, v1 = vertex(e.x0, e.y0), vertex(e.x1, e.y1)
+            if type(e) is planar.Line:
+                edge = BRepBuilderAPI_MakeEdge(gp_Lin(gp_Pnt(e.x0, e.y0, 0.0), gp_Dir(e.x1 - e.x0, e.y1 - e.y0, 0.0)), v0, v1).Edge()
+            elif e.a1 > e.a0:
+                circ = gp_Circ(gp_Ax2(gp_Pnt(e.cx, e.cy, 0.0), gp_Dir(0.0, 0.0, 1.0)), e.r)
+                edge = BRepBuilderAPI_MakeEdge(circ, v0, v1).Edge()
+            else:
+                circ = gp_Circ(gp_Ax2(gp_Pnt(e.cx, e.cy, 0.0), gp_Dir(0.0, 0.0, -1.0)), e.r)
+                edge = BRepBuilderAPI_MakeEdge(circ, v0, v1).Edge()
+            mk.Add(edge)
+        if not mk.IsDone():
+            raise RuntimeError("the region's loop does not close")
+        return mk.Wire()
+
+    out = []
+    for k, o in enumerate(outers):
+        mk = BRepBuilderAPI_MakeFace(gp_Pln(gp_Pnt(0.0, 0.0, 0.0), gp_Dir(0.0, 0.0, 1.0)), wire(o), True)
+        for h in holes[k]:
+            mk.Add(wire(h))
+        out.append(mk.Face())
+    return out[0] if len(out) == 1 else compound(out)

@@ -355,14 +355,14 @@ def test_a_cut_below_the_last_ones_end_keeps_its_whole_start_disk(layers):
 def _counting_cuts(monkeypatch):
     from fusioncut.engines.brep import layers as layers_module
 
-    calls = []
-    real = layers_module._cut_region
+    calls = []  # one per layer cut (tried in closed form first)
+    real = layers_module._closed_form_cut
 
     def counted(*args):
         calls.append(1)
         return real(*args)
 
-    monkeypatch.setattr(layers_module, "_cut_region", counted)
+    monkeypatch.setattr(layers_module, "_closed_form_cut", counted)
     return calls
 
 
