@@ -194,10 +194,11 @@ def _line_circle(a: Line, c: Arc) -> list[tuple[float, float]]:
     s = (c.cx - a.x0) * ux + (c.cy - a.y0) * uy
     fx, fy = a.x0 + s * ux, a.y0 + s * uy
     d = math.hypot(c.cx - fx, c.cy - fy)
-    if d > c.r + EPS:
+    gap = d - c.r
+    if gap > EPS:
         return []
     h2 = c.r * c.r - d * d
-    cands = [(fx, fy)] if abs(d - c.r) <= EPS else [(fx - math.sqrt(h2) * ux, fy - math.sqrt(h2) * uy),
+    cands = [(fx, fy)] if gap >= -EPS else [(fx - math.sqrt(h2) * ux, fy - math.sqrt(h2) * uy),
                                                     (fx + math.sqrt(h2) * ux, fy + math.sqrt(h2) * uy)]
     return [p for p in cands if _params_at(a, *p) is not None and _params_at(c, *p) is not None]
 
@@ -368,6 +369,9 @@ def difference(a: Region, b: Region) -> Difference:
     """The region ``a`` minus the region ``b``. Raises :class:`Degenerate` (see the module)."""
     a_edges = [e for loop in a for e in loop]
     b_edges = [e for loop in b for e in loop]
+    if any(math.hypot(e.x1 - e.x0, e.y1 - e.y0) < SNAP and (type(e) is Line or abs(e.a1 - e.a0) < math.pi)
+           for e in (*a_edges, *b_edges)):
+        raise Degenerate("an edge shorter than the vertex tolerance")
     a_boxes = [edge_box(e) for e in a_edges]
     b_boxes = [edge_box(e) for e in b_edges]
     bb, a_box = _union_box(b_boxes), _union_box(a_boxes)
