@@ -66,11 +66,13 @@ def arc(cx: float, cy: float, r: float, a0: float, a1: float) -> Arc:
 
 
 def edge_area(e: Edge) -> float:
-    """Half of ∮ x dy − y dx along ``e`` (mm²): a closed loop's edges sum to its signed area."""
+    """Half of ∮ x dy − y dx along ``e`` (mm²): a closed loop's edges sum to its signed area. An
+    arc's is taken from its stored end points (cx Δy − cy Δx + r² Δa), so that a loop's sum does not
+    depend on where the origin is even for an arc whose ends were snapped (by up to ``SNAP``) to a
+    neighbour's: its error stays that gap times the arc's size, not times the distance to the origin."""
     if type(e) is Line:
         return 0.5 * (e.x0 * e.y1 - e.x1 * e.y0)
-    return 0.5 * (e.r * (e.cx * (math.sin(e.a1) - math.sin(e.a0)) - e.cy * (math.cos(e.a1) - math.cos(e.a0)))
-                  + e.r * e.r * (e.a1 - e.a0))
+    return 0.5 * (e.cx * (e.y1 - e.y0) - e.cy * (e.x1 - e.x0) + e.r * e.r * (e.a1 - e.a0))
 
 
 def region_area(region: Region) -> float:
@@ -428,8 +430,8 @@ def difference(a: Region, b: Region) -> Difference:
             lost.append((piece, v0, v1))
             new.append((reversed_edge(piece), v1, v0))
             b_kept.append(piece)
-    new_loops = _chain(new)
-    lost_loops = _chain(lost)
+    new_loops = _chain(new, verts.points)
+    lost_loops = _chain(lost, verts.points)
     new_area = sum(edge_area(e) for loop in new_loops for e in loop)
     lost_area = sum(edge_area(e) for loop in lost_loops for e in loop)
     return Difference(tuple(new_loops), new_area, lost_area, tuple(b_kept))
@@ -445,9 +447,11 @@ def reversed_edge(e: Edge) -> Edge:
     return Arc(e.x1, e.y1, e.x0, e.y0, e.cx, e.cy, e.r, e.a1, e.a0)
 
 
-def _chain(pieces: list[tuple[Edge, int, int]]) -> list[tuple[Edge, ...]]:
+def _chain(pieces: list[tuple[Edge, int, int]], points: list[tuple[float, float]]) -> list[tuple[Edge, ...]]:
     """The pieces joined end to start into closed loops; at a vertex several loops pass through,
-    the sharpest right turn (which keeps each loop simple). Degenerate if they do not close."""
+    the sharpest right turn (which keeps each loop simple). Degenerate if they do not close. A
+    piece's ends are moved onto its vertices' ``points`` (where a vertex merged points up to SNAP
+    apart), so that every loop closes exactly."""
     out_of: dict[int, list[int]] = {}
     for k, (_, v0, _) in enumerate(pieces):
         out_of.setdefault(v0, []).append(k)
@@ -459,7 +463,11 @@ def _chain(pieces: list[tuple[Edge, int, int]]) -> list[tuple[Edge, ...]]:
         loop, k = [], k0
         while True:
             used[k] = True
-            loop.append(pieces[k][0])
+            e, v0, v1 = pieces[k]
+            p0, p1 = points[v0], points[v1]
+            if (e.x0, e.y0) != p0 or (e.x1, e.y1) != p1:
+                e = e._replace(x0=p0[0], y0=p0[1], x1=p1[0], y1=p1[1])
+            loop.append(e)
             end = pieces[k][2]
             if end == pieces[k0][1]:
                 break
