@@ -49,7 +49,7 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
 from fusioncut.engines.brep.contact import arc_contacts, find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import (
-    CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, layer_from_state, outline, solid_layers, stack_box,
+    CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, layer_from_state, solid_layers, stack_box,
     stack_solid, stack_volume,
 )
 from fusioncut.engines.brep.occ import (
@@ -58,7 +58,7 @@ from fusioncut.engines.brep.occ import (
     volume_change, without_slivers, write_binary_brep, write_brep,
 )
 from fusioncut.engines.brep.stock import stock_solid
-from fusioncut.engines.brep.sweep import cylinder_region, cylinder_tool, swept_volume
+from fusioncut.engines.brep.sweep import cylinder_region_outline, cylinder_tool, swept_volume
 from fusioncut.engines.segments import horizontal_direction, segments_for, step_motion
 from fusioncut.errors import InputError
 from fusioncut.model.angles import immersion_from_machine
@@ -393,8 +393,8 @@ class BRepEngine:
                               reason=f"Boolean failed after retries: {exc}; shapes saved to {saved}"), []
         try:
             fuzzies = (self.options.fuzzy or 0.0, *self.options.fuzzy_retries)
-            layered = [(c, *cut_stack(c.layers, region.face, region.z_tip, region.z_top, fuzzies,
-                                      c.swept.get(region.key), region.outline)) for c in flat]
+            layered = [(c, *cut_stack(c.layers, region.outline, region.z_tip, region.z_top, fuzzies,
+                                      c.swept.get(region.key))) for c in flat]
         except RegionCutFailure as exc:
             log.error("CL %d (%s): layered Boolean failed: %s", index, move.source, exc)
             return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
@@ -420,7 +420,7 @@ class BRepEngine:
                              method=method, timings=timings)
         contacts = []
         try:
-            arcs = [p for _, _, _, cuts in layered for p in contact_patches(cuts, region.face, move.end[:2], region.radius)]
+            arcs = [p for _, _, _, cuts in layered for p in contact_patches(cuts, move.end[:2], region.radius)]
             candidates = []
             if results:
                 sweep_faces = list(faces(sweep.shape))
@@ -613,13 +613,13 @@ class BRepEngine:
         if cyl is None or (z_end - z_tip > 1e-9 and math.dist(motion.start[:2], motion.end[:2]) > 1e-9):
             return None
         at_zero = motion.translated((0.0, 0.0, -z_tip))
-        face = cylinder_region(cyl[0], at_zero, open_start)  # the region at z = 0
-        if face is None:
+        region = cylinder_region_outline(cyl[0], at_zero, open_start)  # the region at z = 0
+        if region is None:
             return None
-        # everything cylinder_region builds the face from: equal keys, the same face
+        # everything the region is built from: equal keys, the same region
         key = (cyl[0], open_start, type(at_zero).__name__, at_zero.start, at_zero.end,
                getattr(at_zero, "center", None), getattr(at_zero, "clockwise", None), getattr(at_zero, "turns", None))
-        return CuttingRegion(face, cyl[0], z_tip, z_end + cyl[1], key, outline(face))
+        return CuttingRegion(region, cyl[0], z_tip, z_end + cyl[1], key)
 
     def _maybe_merge(self, cell: Cell, level_flat_cut: bool) -> None:
         """After a solid cell was cut: merge its faces when they grew by ``merge_growth``; then,

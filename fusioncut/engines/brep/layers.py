@@ -210,16 +210,16 @@ def stack_solid(layers: tuple[Layer, ...]) -> TopoDS_Shape:
 
 @dataclass(frozen=True)
 class CuttingRegion:
-    """What a cylindrical tool's move takes from a stack: the planar region it covers (faces at
-    z = 0), the tool's radius, and the heights of its tip and of its top (mm). ``key`` names the
-    region exactly (equal keys: the very same region), so a stack can remember what it lost."""
+    """What a cylindrical tool's move takes from a stack: the planar region it covers (an outline
+    at z = 0, :mod:`~fusioncut.engines.brep.planar`), the tool's radius, and the heights of its tip
+    and of its top (mm). ``key`` names the region exactly (equal keys: the very same region), so a
+    stack can remember what it lost."""
 
-    face: TopoDS_Face
+    outline: planar.Region
     radius: float
     z_tip: float
     z_top: float
     key: tuple = ()
-    outline: planar.Region | None = None  # the face as lines and arcs (None: it has other curves)
 
 
 @dataclass(frozen=True)
@@ -232,29 +232,34 @@ class LayerCut:
     z_hi: float
     new: Layer | None
     op: BOPAlgo_Builder | None = None
+    tool: TopoDS_Shape | None = None  # the cutting region's faces the split was made with
     kept: tuple[planar.Edge, ...] = ()
 
 
-def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_top: float,
+def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape | planar.Region, z_tip: float, z_top: float,
               fuzzy_values: tuple[float, ...], clear_from: float | None = None,
-              region_outline: planar.Region | None | bool = True,
               ) -> tuple[tuple[Layer, ...], float, list[LayerCut]]:
-    """The stack after removing the prism of ``region`` (z = 0) from ``z_tip`` to ``z_top`` (mm).
+    """The stack after removing the prism of ``region`` (faces or an outline at z = 0) from
+    ``z_tip`` to ``z_top`` (mm).
 
     Returns (new layers, removed volume in mm³, the cuts of the layers that lost material).
     ``z_top`` must reach the stack's top (the regions stay nested). ``clear_from``: a height (mm)
     above which this very region was already taken from the stack (material only ever goes, so
-    layers from there up lose nothing and are not cut). ``region_outline``: ``region`` as lines
-    and arcs (True: made here; None or False: cut with the kernel's General Fuse alone). Each layer
-    whose region is lines and arcs too is cut in closed form (:func:`planar.difference`), else, or
-    where that cannot decide, by the General Fuse. Raises :class:`RegionCutFailure` when a 2D
+    layers from there up lose nothing and are not cut). Each layer whose region is lines and arcs,
+    as the cutting region's, is cut in closed form (:func:`planar.difference`); otherwise, or where
+    that cannot decide, by the kernel's General Fuse. Raises :class:`RegionCutFailure` when a 2D
     Boolean fails with every fuzzy value.
     """
     if z_top < layers[-1].z_hi - Z_SNAP:
         raise ValueError("a layered cut must reach above the stack")
-    region_box = bounding_box(region)
-    if region_outline is True:
-        region_outline = outline(region)
+    if isinstance(region, tuple):
+        region_outline, face = region, None
+        x0, y0, x1, y1 = planar.region_box(region)
+        t = EDGE_TOLERANCE
+        region_box = ((x0 - t, y0 - t, -t), (x1 + t, y1 + t, t))
+    else:
+        region_outline, face = outline(region), region
+        region_box = bounding_box(region)
     # snap the tip to a boundary it nearly touches: a Z_SNAP-thin layer is noise, not material
     for la in layers:
         for z in (la.z_lo, la.z_hi):
@@ -276,7 +281,9 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_t
             op = None
             new = outline_layer(z_lo, la.z_hi, new_outline, new_area) if new_outline else None
         else:
-            new_region, new_area, op = _cut_region(la.region, region, la.area, fuzzy_values)
+            if face is None:
+                face = outline_faces(region_outline)
+            new_region, new_area, op = _cut_region(la.region, face, la.area, fuzzy_values)
             kept = ()
             new = None
             if new_region is not None and any(True for _ in faces(new_region)):
@@ -292,7 +299,7 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape, z_tip: float, z_t
         removed += (la.area - (new.area if new else 0.0)) * (la.z_hi - z_lo)
         if new is not None:
             out.append(new)
-        cuts.append(LayerCut(z_lo, la.z_hi, new, op, kept))
+        cuts.append(LayerCut(z_lo, la.z_hi, new, op, face if op is not None else None, kept))
     return _joined(out), removed, cuts
 
 
@@ -362,7 +369,7 @@ def _cut_region(old: TopoDS_Shape, tool: TopoDS_Shape, old_area: float, fuzzy_va
     raise RegionCutFailure(last)
 
 
-def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[float, float], radius: float,
+def contact_patches(cuts: list[LayerCut], center: tuple[float, float], radius: float,
                     tol: float = 1e-6) -> list[tuple[float, float, float, float]]:
     """The engaged arcs on the tool's cylinder (axis through ``center``, ``radius`` mm): where the
     cut layers' new boundaries come from the cutting region's edges on that circle, each over its
@@ -372,7 +379,6 @@ def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[fl
     such faces.
     """
     patches = []
-    on_circle = None
     for c in cuts:
         if c.new is None:
             continue
@@ -382,10 +388,9 @@ def contact_patches(cuts: list[LayerCut], region: TopoDS_Shape, center: tuple[fl
                     x, y = (e.x0, e.y0) if e.a1 > e.a0 else (e.x1, e.y1)
                     patches.append((math.atan2(y - e.cy, x - e.cx), abs(e.a1 - e.a0), c.z_lo, c.z_hi))
             continue
-        if on_circle is None:
-            own = ShapeMap()
-            TopExp.MapShapes_s(region, TopAbs_EDGE, own)
-            on_circle = [e for e in edges(region) if _on_circle(e, center, radius, tol)]
+        own = ShapeMap()
+        TopExp.MapShapes_s(c.tool, TopAbs_EDGE, own)
+        on_circle = [e for e in edges(c.tool) if _on_circle(e, center, radius, tol)]
         kept = ShapeMap()
         TopExp.MapShapes_s(c.new.region, TopAbs_EDGE, kept)
         origins = c.op.Origins()

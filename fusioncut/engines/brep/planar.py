@@ -65,6 +65,31 @@ def arc(cx: float, cy: float, r: float, a0: float, a1: float) -> Arc:
     return Arc(x0, y0, cx + r * math.cos(a1), cy + r * math.sin(a1), cx, cy, r, a0, a1)
 
 
+def from_pieces(pieces) -> Region:
+    """One loop from ``("line", (p0, p1))`` and ``("arc", (p0, through, p1))`` pieces in order
+    (points (x, y, ...) in mm; an arc is the circle through its three points), counter-clockwise."""
+    loop = []
+    for kind, pts in pieces:
+        (x0, y0), (x1, y1) = pts[0][:2], pts[-1][:2]
+        if kind == "line":
+            loop.append(Line(x0, y0, x1, y1))
+            continue
+        xm, ym = pts[1][:2]
+        # the circumcentre, from the perpendicular bisectors
+        bx, by, cx_, cy_ = xm - x0, ym - y0, x1 - x0, y1 - y0
+        den = 2.0 * (bx * cy_ - by * cx_)
+        ux = (cy_ * (bx * bx + by * by) - by * (cx_ * cx_ + cy_ * cy_)) / den
+        uy = (bx * (cx_ * cx_ + cy_ * cy_) - cx_ * (bx * bx + by * by)) / den
+        cx, cy = x0 + ux, y0 + uy
+        a0 = math.atan2(y0 - cy, x0 - cx)
+        turn = (math.atan2(y1 - cy, x1 - cx) - a0) % TWO_PI
+        a1 = a0 + turn if den > 0 else a0 - (TWO_PI - turn)  # den > 0: the three points turn left
+        loop.append(Arc(x0, y0, x1, y1, cx, cy, math.hypot(ux, uy), a0, a1))
+    if sum(edge_area(e) for e in loop) < 0:
+        loop = [reversed_edge(e) for e in reversed(loop)]
+    return (tuple(loop),)
+
+
 def edge_area(e: Edge) -> float:
     """Half of ∮ x dy − y dx along ``e`` (mm²): a closed loop's edges sum to its signed area. An
     arc's is taken from its stored end points (cx Δy − cy Δx + r² Δa), so that a loop's sum does not

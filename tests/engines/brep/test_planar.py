@@ -147,3 +147,21 @@ def test_random_cuts_agree_with_the_general_fuse(cuts):
         face = new_face
         region = outline(face)
         assert region is not None
+
+
+@settings(max_examples=60, deadline=None)
+@given(moves, st.sampled_from([2.0, 3.0, 5.0]), st.booleans())
+def test_the_cutting_region_built_without_the_kernel_is_the_kernels(move, r, open_start):
+    from fusioncut.engines.brep.sweep import cylinder_region_outline
+
+    face = cylinder_region(r, move, open_start)
+    direct = cylinder_region_outline(r, move, open_start)
+    if face is None:
+        assert direct is None
+        return
+    read = outline(face)
+    assert planar.region_area(direct) == pytest.approx(area(face), rel=1e-12)
+    assert len(direct) == len(read) == 1 and len(direct[0]) == len(read[0])
+    # the same edges, from the same start where the loop is read from one
+    ends = {(round(e.x0, 9), round(e.y0, 9), type(e).__name__) for e in read[0]}
+    assert {(round(e.x0, 9), round(e.y0, 9), type(e).__name__) for e in direct[0]} == ends
