@@ -70,10 +70,6 @@ from fusioncut.model.tools import MillingTool, SpindleDirection
 log = logging.getLogger("fusioncut.engine")
 
 
-# a cut through a stack costs a 2D Boolean (~1.5 ms) per layer it takes material from, so a cell
-# with more layers than this (the ledges a helical entry's steps leave on its bore) goes on as a
-# solid: on the quick benchmark's CLs 997-1800, 6 took 19.6 s, 30 took 23.0 s (all solid: 22.4 s)
-MAX_LAYERS = 6
 # a solid cell is split into quarters down to cell_size / MAX_SPLIT (20 mm cells: 5 mm; see _quarter)
 MAX_SPLIT = 4
 
@@ -130,11 +126,11 @@ class Cell:
         self.box = stack_box(layers) if layers else None
         self.volume = stack_volume(layers) if layers else 0.0
 
-    def to_layers(self) -> None:
+    def to_layers(self, max_layers: int) -> None:
         """Take the layered form when the solid is 2.5D (a box stock's cell, or one only flat end
-        mills have cut) in at most ``MAX_LAYERS`` layers."""
+        mills have cut) in at most ``max_layers`` layers."""
         if self.layers is None and self.solid is not None:
-            layers = solid_layers(self.solid, MAX_LAYERS)
+            layers = solid_layers(self.solid, max_layers)
             if layers is not None:
                 # the solid goes too: built again from the layers when needed, it is the very shape
                 # a run resumed from a checkpoint (which keeps the layers) builds, bit for bit
@@ -184,7 +180,7 @@ class BRepEngine:
         """Cells that are 2.5D take the layered form (when ``options.layers``)."""
         if self.options.layers and self.options.sweep == "exact":
             for cell in self.cells:
-                cell.to_layers()
+                cell.to_layers(self.options.max_layers)
 
     @property
     def ipw(self) -> TopoDS_Shape:
@@ -334,7 +330,7 @@ class BRepEngine:
         region = self._cutting_region(motion, tool, open_start) if any(c.layers for c in candidates) else None
         flat, solid = [], []  # the cells cut as layers, and those cut as solids
         for c in candidates:
-            if (c.layers is not None and region is not None and len(c.layers) <= MAX_LAYERS
+            if (c.layers is not None and region is not None and len(c.layers) <= self.options.max_layers
                     and c.layers[-1].z_hi <= region.z_top):
                 flat.append(c)
             else:
@@ -637,7 +633,7 @@ class BRepEngine:
             cell.faces_at_merge = count_faces(cell.shape) if cell.shape is not None else 0
         if not (self.options.layers and self.options.sweep == "exact") or not (merged or level_flat_cut):
             return
-        cell.to_layers()  # back to layers once a helical entry's floor steps are gone
+        cell.to_layers(self.options.max_layers)  # back to layers once a helical entry's floor steps are gone
         # not while a helix is stepping down (quarters multiply its Booleans: the full benchmark's
         # first helix, CLs 1000-1250, took 11.9 s in 20 mm cells and 17.4 s split down to 5 mm), and
         # not for ball end mills (their scallops are everywhere they went: quick benchmark's finish
@@ -691,7 +687,7 @@ class BRepEngine:
                            swept=dict(cell.swept))
             quarter.set(piece, piece_volume)
             if self.options.layers and self.options.sweep == "exact":
-                quarter.to_layers()
+                quarter.to_layers(self.options.max_layers)
             new.append(quarter)
         k = next(k for k, c in enumerate(self.cells) if c is cell)
         self.cells[k:k + 1] = new

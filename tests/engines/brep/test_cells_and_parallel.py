@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
-from fusioncut.engines.brep.engine import BRepEngine
+from fusioncut.engines.brep.engine import BRepEngine, cl_sequence
 from fusioncut.model import ArcMove, BoxStock, CLStatus, FlatEndMill, LinearMove, Toolpath
 
 STOCK = BoxStock((0.0, 0.0, -12.0), (50.0, 40.0, 0.0))
@@ -147,14 +147,15 @@ def staircase_and_slots() -> Toolpath:
 
 
 def test_solid_cells_split_into_quarters_equal_unsplit_cells(monkeypatch):
-    """A helical entry without a flat turn leaves a staircase floor: its four 20 mm cells go solid.
-    Level slots after it split them into quarters, and those away from the staircase take the
-    layers; CL by CL the results equal an engine that never splits, and volume adds up."""
+    """A helical entry without a flat turn leaves a staircase floor: with at most 6 layers a cell,
+    its four 20 mm cells go solid. Level slots after it split them into quarters, and those away
+    from the staircase take the layers; CL by CL the results equal an engine that never splits,
+    and volume adds up."""
     import fusioncut.engines.brep.engine as engine_module
     from test_helical_entry import STOCK as BLOCK
 
     tp = staircase_and_slots()
-    options = EngineOptions(ramp_step=0.2, max_segment_length=2.0)
+    options = EngineOptions(ramp_step=0.2, max_segment_length=2.0, max_layers=6)
     runs = {}
     for split in (1, engine_module.MAX_SPLIT):
         monkeypatch.setattr(engine_module, "MAX_SPLIT", split)
@@ -170,6 +171,24 @@ def test_solid_cells_split_into_quarters_equal_unsplit_cells(monkeypatch):
     assert_same(runs[engine_module.MAX_SPLIT], runs[1])
 
 
+def test_a_staircase_stays_layered_and_equals_its_solid_cells():
+    """The same staircase with the default layer limit: its ledges stay layers (more than the 6
+    that turned the cells solid), and CL by CL the results equal those of the solid cells."""
+    from test_helical_entry import STOCK as BLOCK
+
+    runs, most = {}, {}
+    for limit in (6, EngineOptions().max_layers):
+        engine = BRepEngine(EngineOptions(ramp_step=0.2, max_segment_length=2.0, max_layers=limit))
+        engine.start(BLOCK)
+        runs[limit], most[limit] = [], 0
+        for index, move, tool, feed_angle in cl_sequence(staircase_and_slots(), engine.options):
+            runs[limit].append(engine.step(index, move, tool, feed_angle))
+            most[limit] = max([most[limit], *(len(c.layers) for c in engine.cells if c.layers)])
+        conserved(engine)
+    assert most[EngineOptions().max_layers] > most[6] + 1  # a cut may leave one more than the limit
+    assert_same(runs[EngineOptions().max_layers], runs[6])
+
+
 def test_dask_workers_split_cells_as_one_process():
     """Workers split their own solid cells; the workpiece gathered from them holds every quarter."""
     pytest.importorskip("distributed")
@@ -178,7 +197,7 @@ def test_dask_workers_split_cells_as_one_process():
     from fusioncut.engines.brep.occ import volume
     from fusioncut.engines.brep.parallel import ParallelBRepEngine
 
-    options = EngineOptions(ramp_step=0.2, max_segment_length=2.0)
+    options = EngineOptions(ramp_step=0.2, max_segment_length=2.0, max_layers=6)  # the staircase's cells solid
     one = BRepEngine(options)
     alone = list(one.run(staircase_and_slots(), BLOCK))
     with ParallelBRepEngine(options, workers=2, batch=9) as engine:
