@@ -8,7 +8,9 @@ the tip up past the cell's top, so it takes that region away from every layer ab
 removes nothing below it. Doing that as 2D Booleans on the layers' regions gives the same material
 as the 3D Boolean of the cell and the prism, at a fraction of the cost (measured on the Titan-like
 benchmark's adaptive cells, 40-edge regions: a 2D Cut 0.3–2 ms against 3–16 ms for the 3D Cut of the
-same cell).
+same cell). Regions of lines and arcs, which are all a flat end mill leaves, are cut in closed form
+(:mod:`fusioncut.engines.brep.planar`, ~0.5 ms on those regions against 5–6 ms for OCCT's General
+Fuse); a cut it cannot decide, and a region with other curves, goes to the General Fuse.
 
 Conventions: regions are compounds of planar faces in the plane z = 0 (mm); a layer covers
 ``z_lo <= z <= z_hi`` (mm, machine frame). Layers are ordered bottom up and never overlap.
