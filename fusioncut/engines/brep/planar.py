@@ -105,8 +105,21 @@ def region_area(region: Region) -> float:
     return sum(edge_area(e) for loop in region for e in loop)
 
 
+_boxes: dict[Edge, tuple[float, float, float, float]] = {}
+
+
 def edge_box(e: Edge) -> tuple[float, float, float, float]:
-    """(xmin, ymin, xmax, ymax) of the edge, exact (an arc's extreme points where it passes them)."""
+    """(xmin, ymin, xmax, ymax) of the edge, exact (an arc's extreme points where it passes them).
+    Remembered: a region's edges are mostly those of the region it was cut from."""
+    box = _boxes.get(e)
+    if box is None:
+        if len(_boxes) > 200_000:
+            _boxes.clear()
+        box = _boxes[e] = _edge_box(e)
+    return box
+
+
+def _edge_box(e: Edge) -> tuple[float, float, float, float]:
     xs, ys = [e.x0, e.x1], [e.y0, e.y1]
     if type(e) is Arc:
         lo, hi = (e.a0, e.a1) if e.a1 >= e.a0 else (e.a1, e.a0)
@@ -276,8 +289,17 @@ class _Vertices:
     def __init__(self) -> None:
         self.points: list[tuple[float, float]] = []
         self.grid: dict[tuple[int, int], list[int]] = {}
+        self.exact: dict[tuple[float, float], int] = {}
 
     def id(self, x: float, y: float) -> int:
+        k = self.exact.get((x, y))
+        if k is not None:
+            return k
+        k = self._merged(x, y)
+        self.exact[(x, y)] = k
+        return k
+
+    def _merged(self, x: float, y: float) -> int:
         gx, gy = int(math.floor(x / SNAP)), int(math.floor(y / SNAP))
         for i in range(gx - 1, gx + 2):
             for j in range(gy - 1, gy + 2):
@@ -373,13 +395,14 @@ def _distance(e: Edge, x: float, y: float) -> float:
     return min(math.hypot(x - e.x0, y - e.y0), math.hypot(x - e.x1, y - e.y1))
 
 
-def _side(edges_near: list[Edge], all_edges: list[Edge], x: float, y: float) -> bool:
-    """Whether (x, y) lies inside the loops of ``all_edges``; Degenerate when it is within EPS·10
-    of their boundary (``edges_near``: the ones that may be that close)."""
+def _side(edges_near: list[Edge], all_edges: list[Edge], boxes, x: float, y: float) -> bool:
+    """Whether (x, y) lies inside the loops of ``all_edges`` (their ``boxes``); Degenerate when it
+    is within EPS·10 of their boundary (``edges_near``: the ones that may be that close)."""
     for e in edges_near:
         if _distance(e, x, y) < 10 * EPS:
             raise Degenerate(f"a piece's midpoint ({x:.9g}, {y:.9g}) lies on the other region's boundary")
-    return winding(all_edges, x, y) > 0
+    # only edges level with the point and reaching right of it can cross the ray to +X
+    return winding([e for e, b in zip(all_edges, boxes) if b[1] <= y <= b[3] and b[2] > x], x, y) > 0
 
 
 class Difference(NamedTuple):
@@ -425,22 +448,41 @@ def difference(a: Region, b: Region) -> Difference:
             cuts_a[i].extend(pts)
             cuts_b[j].extend(pts)
     verts = _Vertices()
-    new: list[tuple[Edge, int, int]] = []
+    new: list[tuple[Edge | list[Edge], int, int]] = []  # a piece, or a run of untouched edges
     lost: list[tuple[Edge, int, int]] = []
     b_kept: list[Edge] = []
-    for i, e in enumerate(a_edges):
-        if i not in cuts_a:
-            new.append((e, verts.id(e.x0, e.y0), verts.id(e.x1, e.y1)))
+    kept_loops: list[tuple[Edge, ...]] = []
+    first = 0
+    for loop in a:
+        count = len(loop)
+        touched = [k for k in range(count) if first + k in cuts_a]
+        if not touched:
+            kept_loops.append(loop)  # wholly outside b's box: kept as it is
+            first += count
             continue
-        for piece, v0, v1, t0, t1 in _split(e, cuts_a[i], verts):
-            tm = 0.5 * (t0 + t1)
-            on = next((s for lo, hi, s in shared_a.get(i, ()) if lo - 1e-12 <= tm <= hi + 1e-12), None)
-            if on is not None:
-                (lost if on > 0 else new).append((piece, v0, v1))
+        # from a touched edge round the loop: the untouched edges between go as one run
+        start = touched[0]
+        run: list[Edge] = []
+        for step in range(count):
+            k = (start + step) % count
+            i = first + k
+            if i not in cuts_a:
+                run.append(loop[k])
+                if (k + 1) % count == start or first + (k + 1) % count in cuts_a:
+                    new.append((run, verts.id(run[0].x0, run[0].y0), verts.id(run[-1].x1, run[-1].y1)))
+                    run = []
                 continue
-            inside = _side([b_edges[j] for j in range(len(b_edges)) if _overlap(edge_box(piece), b_boxes[j], 10 * EPS)],
-                           b_edges, *edge_point(piece))
-            (lost if inside else new).append((piece, v0, v1))
+            e = loop[k]
+            for piece, v0, v1, t0, t1 in _split(e, cuts_a[i], verts):
+                tm = 0.5 * (t0 + t1)
+                on = next((s for lo, hi, s in shared_a.get(i, ()) if lo - 1e-12 <= tm <= hi + 1e-12), None)
+                if on is not None:
+                    (lost if on > 0 else new).append((piece, v0, v1))
+                    continue
+                inside = _side([b_edges[j] for j in range(len(b_edges)) if _overlap(edge_box(piece), b_boxes[j], 10 * EPS)],
+                               b_edges, b_boxes, *edge_point(piece))
+                (lost if inside else new).append((piece, v0, v1))
+        first += count
     for j, e in enumerate(b_edges):
         for piece, v0, v1, t0, t1 in _split(e, cuts_b[j], verts):
             tm = 0.5 * (t0 + t1)
@@ -450,12 +492,12 @@ def difference(a: Region, b: Region) -> Difference:
             if not _overlap(box, a_box, SNAP):
                 continue
             near = [a_edges[i] for i in near_a if _overlap(box, a_boxes[i], 10 * EPS)]
-            if not _side(near, a_edges, *edge_point(piece)):
+            if not _side(near, a_edges, a_boxes, *edge_point(piece)):
                 continue
             lost.append((piece, v0, v1))
             new.append((reversed_edge(piece), v1, v0))
             b_kept.append(piece)
-    new_loops = _chain(new, verts.points)
+    new_loops = kept_loops + _chain(new, verts.points)
     lost_loops = _chain(lost, verts.points)
     new_area = sum(edge_area(e) for loop in new_loops for e in loop)
     lost_area = sum(edge_area(e) for loop in lost_loops for e in loop)
@@ -470,6 +512,14 @@ def reversed_edge(e: Edge) -> Edge:
     if type(e) is Line:
         return Line(e.x1, e.y1, e.x0, e.y0)
     return Arc(e.x1, e.y1, e.x0, e.y0, e.cx, e.cy, e.r, e.a1, e.a0)
+
+
+def _first(piece):
+    return piece[0] if type(piece) is list else piece
+
+
+def _last(piece):
+    return piece[-1] if type(piece) is list else piece
 
 
 def _chain(pieces: list[tuple[Edge, int, int]], points: list[tuple[float, float]]) -> list[tuple[Edge, ...]]:
@@ -490,9 +540,16 @@ def _chain(pieces: list[tuple[Edge, int, int]], points: list[tuple[float, float]
             used[k] = True
             e, v0, v1 = pieces[k]
             p0, p1 = points[v0], points[v1]
-            if (e.x0, e.y0) != p0 or (e.x1, e.y1) != p1:
-                e = e._replace(x0=p0[0], y0=p0[1], x1=p1[0], y1=p1[1])
-            loop.append(e)
+            if type(e) is list:  # a run of edges: only its ends may move
+                if (e[0].x0, e[0].y0) != p0:
+                    e = [e[0]._replace(x0=p0[0], y0=p0[1]), *e[1:]]
+                if (e[-1].x1, e[-1].y1) != p1:
+                    e = [*e[:-1], e[-1]._replace(x1=p1[0], y1=p1[1])]
+                loop.extend(e)
+            else:
+                if (e.x0, e.y0) != p0 or (e.x1, e.y1) != p1:
+                    e = e._replace(x0=p0[0], y0=p0[1], x1=p1[0], y1=p1[1])
+                loop.append(e)
             end = pieces[k][2]
             if end == pieces[k0][1]:
                 break
@@ -500,8 +557,8 @@ def _chain(pieces: list[tuple[Edge, int, int]], points: list[tuple[float, float]
             if not options:
                 raise Degenerate("the pieces of the boundary do not close into loops")
             if len(options) > 1:
-                heading = _tangent(pieces[k][0], True)
-                options.sort(key=lambda m: (_tangent(pieces[m][0], False) - heading + math.pi) % TWO_PI)
+                heading = _tangent(_last(pieces[k][0]), True)
+                options.sort(key=lambda m: (_tangent(_first(pieces[m][0]), False) - heading + math.pi) % TWO_PI)
             k = options[0]
         loops.append(tuple(loop))
     return loops
