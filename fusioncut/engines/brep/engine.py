@@ -20,12 +20,13 @@ every Boolean slows down).
 A cell that only cylindrical tools have cut horizontally or vertically is kept as a stack of 2.5D
 layers (``EngineOptions.layers``, :mod:`fusioncut.engines.brep.layers`): the CL's sweep is then a
 planar region taken away from the layers above the tip by 2D differences (in closed form,
-:mod:`fusioncut.engines.brep.planar`; OCCT's General Fuse where that cannot decide), and the contact faces are
-the engaged arcs of each layer extruded over its height, sliced like any other. A cut the layers
-cannot take (another tool, a ramp's oblique sweep, too many layers) turns the cell into a solid; a
-solid cell whose faces are all horizontal or vertical again takes the layers back at its next merge
-or level flat-end-mill cut, and one that such a cut leaves solid is split into quarter squares
-(down to a quarter of ``cell_size``), so that only the part near what is not 2.5D stays solid.
+:mod:`fusioncut.engines.brep.planar`; OCCT's General Fuse where that cannot decide), and the
+contact faces are the engaged arcs of each layer extruded over its height, sliced like any other.
+A cut the layers cannot take (another tool, a ramp's oblique sweep, too many layers) turns the
+cell into a solid; a solid cell whose faces are all horizontal or vertical again takes the layers
+back at its next merge or level flat-end-mill cut, and one that such a cut leaves solid is split
+into quarter squares (down to a quarter of ``cell_size``), so that only the part near what is not
+2.5D stays solid.
 Both forms give the same material and the same engagement (tested against an all-solid run).
 
 A failed Boolean is retried with fuzzy values; if it still fails the CL is reported FAILED with the

@@ -93,7 +93,6 @@ class Layer:
     def volume(self) -> float:
         return self.area * (self.z_hi - self.z_lo)
 
-
     def state(self) -> list:
         """What :func:`layer_from_state` needs besides the region's faces, as JSON values (floats
         round-trip exactly): a resumed run must cut the very same numbers."""
@@ -118,11 +117,16 @@ def make_layer(z_lo: float, z_hi: float, region: TopoDS_Shape, region_area: floa
 
 
 def outline_layer(z_lo: float, z_hi: float, region: planar.Region, region_area: float) -> Layer:
-    """A layer whose region is an outline; its box is the outline's, widened by the tolerance
-    (1e-7 mm) the kernel gives the edges of its faces, as those faces' box would be."""
+    """A layer whose region is an outline."""
+    return Layer(z_lo, z_hi, region_area, _outline_box(region), [None, region])
+
+
+def _outline_box(region: planar.Region) -> Box:
+    """The outline's box (z = 0), widened by the tolerance (1e-7 mm) the kernel gives the edges of
+    its faces, as those faces' box would be."""
     x0, y0, x1, y1 = planar.region_box(region)
     t = EDGE_TOLERANCE
-    return Layer(z_lo, z_hi, region_area, ((x0 - t, y0 - t, -t), (x1 + t, y1 + t, t)), [None, region])
+    return (x0 - t, y0 - t, -t), (x1 + t, y1 + t, t)
 
 
 def _moved(shape: TopoDS_Shape, dz: float) -> TopoDS_Shape:
@@ -255,10 +259,7 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape | planar.Region, z
     if z_top < layers[-1].z_hi - Z_SNAP:
         raise ValueError("a layered cut must reach above the stack")
     if isinstance(region, tuple):
-        region_outline, face = region, None
-        x0, y0, x1, y1 = planar.region_box(region)
-        t = EDGE_TOLERANCE
-        region_box = ((x0 - t, y0 - t, -t), (x1 + t, y1 + t, t))
+        region_outline, face, region_box = region, None, _outline_box(region)
     else:
         region_outline, face = outline(region), region
         region_box = bounding_box(region)

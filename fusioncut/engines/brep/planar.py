@@ -479,8 +479,9 @@ def difference(a: Region, b: Region) -> Difference:
                 if on is not None:
                     (lost if on > 0 else new).append((piece, v0, v1))
                     continue
-                inside = _side([b_edges[j] for j in range(len(b_edges)) if _overlap(edge_box(piece), b_boxes[j], 10 * EPS)],
-                               b_edges, b_boxes, *edge_point(piece))
+                box = edge_box(piece)
+                near = [eb for eb, bb_j in zip(b_edges, b_boxes) if _overlap(box, bb_j, 10 * EPS)]
+                inside = _side(near, b_edges, b_boxes, *edge_point(piece))
                 (lost if inside else new).append((piece, v0, v1))
         first += count
     for j, e in enumerate(b_edges):

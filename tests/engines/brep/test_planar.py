@@ -108,11 +108,19 @@ def test_outlines_and_faces_go_both_ways():
 # both kernels snap and may differ by that much times a length, and where OCCT's own faces from
 # three-point arcs are off their vertices by that much) do not
 grid = st.integers(-40, 360).map(lambda k: k / 8)
+
+
+def pi_64ths(lo, hi):
+    """Angles k·π/64 (rad) for k from lo to hi."""
+    return st.integers(lo, hi).map(lambda k: k * math.pi / 64)
+
+
+
 moves = st.one_of(
     st.tuples(grid, grid.map(lambda v: v * 0.75), grid, grid.map(lambda v: v * 0.75)).map(
         lambda t: LinearMove((t[0], t[1], 0.0), (t[2], t[3], 0.0))),
-    st.tuples(st.integers(40, 280), st.integers(40, 200), st.integers(16, 64), st.integers(-64, 64).map(lambda k: k * math.pi / 64),
-              st.integers(4, 64).map(lambda k: k * math.pi / 64), st.booleans()).map(
+    st.tuples(st.integers(40, 280), st.integers(40, 200), st.integers(16, 64), pi_64ths(-64, 64),
+              pi_64ths(4, 64), st.booleans()).map(
         lambda t: ArcMove((t[0] / 8 + t[2] / 8 * math.cos(t[3]), t[1] / 8 + t[2] / 8 * math.sin(t[3]), 0.0),
                           (t[0] / 8 + t[2] / 8 * math.cos(t[3] + (-t[4] if t[5] else t[4])),
                            t[1] / 8 + t[2] / 8 * math.sin(t[3] + (-t[4] if t[5] else t[4])), 0.0),
