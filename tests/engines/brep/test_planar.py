@@ -115,7 +115,6 @@ def pi_64ths(lo, hi):
     return st.integers(lo, hi).map(lambda k: k * math.pi / 64)
 
 
-
 moves = st.one_of(
     st.tuples(grid, grid.map(lambda v: v * 0.75), grid, grid.map(lambda v: v * 0.75)).map(
         lambda t: LinearMove((t[0], t[1], 0.0), (t[2], t[3], 0.0))),
