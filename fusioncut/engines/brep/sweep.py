@@ -56,7 +56,7 @@ from fusioncut.engines.brep.occ import (
 )
 from fusioncut.engines.ceiling import tool_radii
 from fusioncut.errors import SourceLocation
-from fusioncut.model.moves import ArcMove, ArcPlane, Move
+from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProfile
 
 Vec3 = tuple[float, float, float]
@@ -245,7 +245,17 @@ def cylinder_region_outline(r: float, move: Move, open_start: bool = False) -> p
     return planar.from_pieces(pieces)
 
 
+def _straightened(move: Move, reach: float) -> Move:
+    """An XY arc whose outermost point (``reach`` mm beyond its radius) travels less than 1e-6 mm, as
+    the line between its ends: the two sweeps differ by less than its sagitta (below 1e-15 mm),
+    and the kernel cannot build arcs through three points that close (a 4e-10 rad arc failed)."""
+    if isinstance(move, ArcMove) and move.plane == ArcPlane.XY and abs(move.sweep) * (move.radius + reach) < 1e-6:
+        return LinearMove(move.start, move.end)
+    return move
+
+
 def _region_pieces(r: float, move: Move, open_start: bool):
+    move = _straightened(move, r)
     p0, p1 = move.start, move.end
     if isinstance(move, ArcMove):
         if move.plane != ArcPlane.XY or move.is_helix:
@@ -538,6 +548,7 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
         return SweptVolume(sampled_sweep(tool, move, seam), "sampled")
     if isinstance(move, ArcMove) and (move.plane != ArcPlane.XY or move.is_helix):
         raise ValueError("helices and ZX/YZ arcs must be split into chords first")
+    move = _straightened(move, tool_radii(tool)[0])
     p0, p1 = move.start, move.end
     if not isinstance(move, ArcMove) and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _EPS and abs(p1[2] - p0[2]) < _EPS:
         return SweptVolume(placed_tool(tool, p1, seam), "exact")

@@ -5,8 +5,9 @@ import math
 
 import pytest
 
+from fusioncut.engines.brep import planar
 from fusioncut.engines.brep.occ import area, volume
-from fusioncut.engines.brep.sweep import full_section, swept_volume, tool_solid
+from fusioncut.engines.brep.sweep import cylinder_region_outline, full_section, swept_volume, tool_solid
 from fusioncut.model import (AptCutter, AptParameters, ArcMove, BallEndMill, BullNoseEndMill, ChamferMill,
                              FlatEndMill, LinearMove, TaperedEndMill)
 
@@ -216,3 +217,13 @@ def test_tool_copies_whose_sides_nearly_coincide_still_make_the_whole_sweep():
         sweep = swept_volume(tool, move)
         assert sweep.method == "sampled"
         assert volume(sweep.shape) == pytest.approx(stretched, rel=1e-6)
+
+
+@pytest.mark.parametrize("tool", [FlatEndMill(6, 15), BallEndMill(6, 15)])
+def test_an_arc_too_short_for_the_kernel_sweeps_as_its_chord(tool):
+    """4e-10 rad on a 1 mm radius (found by hypothesis): the kernel makes no circle through three
+    points that close; the sweep, and the layers' cutting region, are the chord's."""
+    a = 4.1427845113545693e-10
+    move = ArcMove((0.0, -1.0, 0.0), (math.sin(a), -math.cos(a), 0.0), center=(0.0, 0.0, 0.0))
+    assert volume(swept_volume(tool, move).shape) == pytest.approx(volume(tool_solid(tool)), rel=1e-6)
+    assert planar.region_area(cylinder_region_outline(3.0, move)) == pytest.approx(math.pi * 9.0, rel=1e-6)
