@@ -61,6 +61,9 @@ from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProf
 
 Vec3 = tuple[float, float, float]
 _EPS = 1e-9
+# mm: a horizontal travel shorter than this counts as none (the tool at the end; a vertical move):
+# the kernel fails to sweep a prism of 1.2e-9 mm, and what such a travel adds is below its tolerance
+_SHORT = 1e-7
 Z = (0.0, 0.0, 1.0)
 
 
@@ -261,9 +264,9 @@ def _region_pieces(r: float, move: Move, open_start: bool):
         if move.plane != ArcPlane.XY or move.is_helix:
             return None
         return _cylinder_arc_region(r, move, open_start)
-    if abs(p1[2] - p0[2]) < _EPS and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) >= _EPS:
+    if abs(p1[2] - p0[2]) < _EPS and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) >= _SHORT:
         return _cylinder_line_region(r, p0, p1, open_start)
-    if math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _EPS:
+    if math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _SHORT:
         return "disk", (p1[0], p1[1], min(p0[2], p1[2]))
     return None
 
@@ -458,7 +461,7 @@ def _exact_sweep(tool: MillingTool, move: Move, seam: float, cyl: tuple[float, f
     dh = math.hypot(p1[0] - p0[0], p1[1] - p0[1])
     if abs(dz) < _EPS:
         return _cylinder_line(*cyl, p0, p1, open_start) if cyl else _horizontal_line(tool, p0, p1, open_start)
-    if dh < _EPS:
+    if dh < _SHORT:
         return _plunge(tool, p0, p1, seam)
     return (_cylinder_ramp(*cyl, p0, p1) if cyl else None) or _ramp(tool, p0, p1, seam)
 
@@ -550,7 +553,7 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
         raise ValueError("helices and ZX/YZ arcs must be split into chords first")
     move = _straightened(move, tool_radii(tool)[0])
     p0, p1 = move.start, move.end
-    if not isinstance(move, ArcMove) and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _EPS and abs(p1[2] - p0[2]) < _EPS:
+    if not isinstance(move, ArcMove) and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _SHORT and abs(p1[2] - p0[2]) < _EPS:
         return SweptVolume(placed_tool(tool, p1, seam), "exact")
     cyl = cylinder_tool(tool)
     shape: TopoDS_Shape | None

@@ -219,11 +219,13 @@ def test_tool_copies_whose_sides_nearly_coincide_still_make_the_whole_sweep():
         assert volume(sweep.shape) == pytest.approx(stretched, rel=1e-6)
 
 
+@pytest.mark.parametrize("radius", [1.0, 3.0])
 @pytest.mark.parametrize("tool", [FlatEndMill(6, 15), BallEndMill(6, 15)])
-def test_an_arc_too_short_for_the_kernel_sweeps_as_its_chord(tool):
-    """4e-10 rad on a 1 mm radius (found by hypothesis): the kernel makes no circle through three
-    points that close; the sweep, and the layers' cutting region, are the chord's."""
+def test_an_arc_too_short_for_the_kernel_sweeps_as_its_chord(tool, radius):
+    """4e-10 rad on a 1 or 3 mm radius (found by hypothesis): the kernel makes no circle through
+    three points that close, nor a prism along the 1.2e-9 mm chord; the sweep, and the layers'
+    cutting region, are the tool's at the end."""
     a = 4.1427845113545693e-10
-    move = ArcMove((0.0, -1.0, 0.0), (math.sin(a), -math.cos(a), 0.0), center=(0.0, 0.0, 0.0))
+    move = ArcMove((0.0, -radius, 0.0), (radius * math.sin(a), -radius * math.cos(a), 0.0), center=(0.0, 0.0, 0.0))
     assert volume(swept_volume(tool, move).shape) == pytest.approx(volume(tool_solid(tool)), rel=1e-6)
     assert planar.region_area(cylinder_region_outline(3.0, move)) == pytest.approx(math.pi * 9.0, rel=1e-6)
