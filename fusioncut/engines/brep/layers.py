@@ -468,8 +468,8 @@ def outline(region: TopoDS_Shape) -> planar.Region | None:
                 it.Next()
             face_loops.append(tuple(loop))
             wires.Next()
-        if sum(planar.edge_area(e) for loop in face_loops for e in loop) < 0:
-            face_loops = [tuple(planar.reversed_edge(e) for e in reversed(loop)) for loop in face_loops]
+        if planar.region_area(face_loops) < 0:
+            face_loops = [planar.reversed_loop(loop) for loop in face_loops]
         loops.extend(face_loops)
     return tuple(loops)
 
@@ -477,10 +477,10 @@ def outline(region: TopoDS_Shape) -> planar.Region | None:
 def outline_faces(region: planar.Region) -> TopoDS_Shape:
     """The planar faces (z = 0) of an outline: each counter-clockwise loop a face, with the
     clockwise loops inside it (the smallest that holds them) as its holes."""
-    outers = [loop for loop in region if sum(planar.edge_area(e) for e in loop) > 0]
+    outers = [loop for loop in region if planar.region_area((loop,)) > 0]
     holes: dict[int, list] = {k: [] for k in range(len(outers))}
     for loop in region:
-        if sum(planar.edge_area(e) for e in loop) > 0:
+        if planar.region_area((loop,)) > 0:
             continue
         x, y = planar.edge_point(loop[0])
         owners = [k for k, o in enumerate(outers) if planar.winding(list(o), x, y) > 0]
@@ -501,12 +501,9 @@ def outline_faces(region: planar.Region) -> TopoDS_Shape:
             v0, v1 = vertex(e.x0, e.y0), vertex(e.x1, e.y1)
             if type(e) is planar.Line:
                 edge = BRepBuilderAPI_MakeEdge(gp_Lin(gp_Pnt(e.x0, e.y0, 0.0), gp_Dir(e.x1 - e.x0, e.y1 - e.y0, 0.0)), v0, v1).Edge()
-            elif e.a1 > e.a0:
-                circ = gp_Circ(gp_Ax2(gp_Pnt(e.cx, e.cy, 0.0), gp_Dir(0.0, 0.0, 1.0)), e.r)
-                edge = BRepBuilderAPI_MakeEdge(circ, v0, v1).Edge()
-            else:
-                circ = gp_Circ(gp_Ax2(gp_Pnt(e.cx, e.cy, 0.0), gp_Dir(0.0, 0.0, -1.0)), e.r)
-                edge = BRepBuilderAPI_MakeEdge(circ, v0, v1).Edge()
+            else:  # the circle's axis up for a counter-clockwise arc, down for a clockwise one
+                axis = gp_Dir(0.0, 0.0, 1.0 if e.a1 > e.a0 else -1.0)
+                edge = BRepBuilderAPI_MakeEdge(gp_Circ(gp_Ax2(gp_Pnt(e.cx, e.cy, 0.0), axis), e.r), v0, v1).Edge()
             mk.Add(edge)
         if not mk.IsDone():
             raise RuntimeError("the region's loop does not close")

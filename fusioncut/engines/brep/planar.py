@@ -85,9 +85,17 @@ def from_pieces(pieces) -> Region:
         turn = (math.atan2(y1 - cy, x1 - cx) - a0) % TWO_PI
         a1 = a0 + turn if den > 0 else a0 - (TWO_PI - turn)  # den > 0: the three points turn left
         loop.append(Arc(x0, y0, x1, y1, cx, cy, math.hypot(ux, uy), a0, a1))
-    if sum(edge_area(e) for e in loop) < 0:
-        loop = [reversed_edge(e) for e in reversed(loop)]
-    return (tuple(loop),)
+    return (tuple(loop),) if region_area((loop,)) >= 0 else (reversed_loop(loop),)
+
+
+def _angles(e: Arc) -> tuple[float, float]:
+    """The arc's angle range (rad) in increasing order, whichever way it runs."""
+    return (e.a0, e.a1) if e.a1 >= e.a0 else (e.a1, e.a0)
+
+
+def reversed_loop(loop) -> tuple[Edge, ...]:
+    """The loop run the other way."""
+    return tuple(reversed_edge(e) for e in reversed(loop))
 
 
 def edge_area(e: Edge) -> float:
@@ -122,7 +130,7 @@ def edge_box(e: Edge) -> tuple[float, float, float, float]:
 def _edge_box(e: Edge) -> tuple[float, float, float, float]:
     xs, ys = [e.x0, e.x1], [e.y0, e.y1]
     if type(e) is Arc:
-        lo, hi = (e.a0, e.a1) if e.a1 >= e.a0 else (e.a1, e.a0)
+        lo, hi = _angles(e)
         k = math.ceil(lo / (0.5 * math.pi))
         while k * 0.5 * math.pi <= hi:
             q = k % 4
@@ -159,7 +167,7 @@ def _length_per_param(e: Edge) -> float:
 def _arc_param(e: Arc, angle: float, slack: float) -> float | None:
     """The parameter of ``e`` at polar ``angle`` (any turn), or None when the arc does not reach it
     (``slack``: rad past its ends still taken)."""
-    lo, hi = (e.a0, e.a1) if e.a1 >= e.a0 else (e.a1, e.a0)
+    lo, hi = _angles(e)
     t = lo + (angle - lo) % TWO_PI
     if t > hi + slack:
         if t - TWO_PI >= lo - slack:
@@ -183,7 +191,7 @@ def _params_at(e: Edge, x: float, y: float) -> float | None:
     t = _arc_param(e, math.atan2(y - e.cy, x - e.cx), SNAP / e.r)
     if t is None:
         return None
-    lo, hi = (e.a0, e.a1) if e.a1 >= e.a0 else (e.a1, e.a0)
+    lo, hi = _angles(e)
     return min(hi, max(lo, t))
 
 
@@ -237,9 +245,11 @@ def _line_circle(a: Line, c: Arc) -> list[tuple[float, float]]:
     gap = d - c.r
     if gap > EPS:
         return []
-    h2 = c.r * c.r - d * d
-    cands = [(fx, fy)] if gap >= -EPS else [(fx - math.sqrt(h2) * ux, fy - math.sqrt(h2) * uy),
-                                                    (fx + math.sqrt(h2) * ux, fy + math.sqrt(h2) * uy)]
+    if gap >= -EPS:
+        cands = [(fx, fy)]
+    else:
+        h = math.sqrt(c.r * c.r - d * d)
+        cands = [(fx - h * ux, fy - h * uy), (fx + h * ux, fy + h * uy)]
     return [p for p in cands if _params_at(a, *p) is not None and _params_at(c, *p) is not None]
 
 
@@ -264,8 +274,7 @@ def _circle_circle(a: Arc, b: Arc):
 def _same_circle(a: Arc, b: Arc):
     """Arcs of one circle: the part of ``a`` that ``b`` covers (one interval, or none; two when the
     arcs overlap at both ends, which a region's arcs of at most a turn rarely do: then Degenerate)."""
-    alo, ahi = (a.a0, a.a1) if a.a1 >= a.a0 else (a.a1, a.a0)
-    blo, bhi = (b.a0, b.a1) if b.a1 >= b.a0 else (b.a1, b.a0)
+    (alo, ahi), (blo, bhi) = _angles(a), _angles(b)
     same = (a.a1 >= a.a0) == (b.a1 >= b.a0)
     found, points = [], []
     for k in (-2, -1, 0, 1, 2):
@@ -372,7 +381,7 @@ def _monotone(e: Arc) -> list[tuple[tuple[float, float], tuple[float, float]]]:
     """The arc's stretches between its ends and the top and bottom of its circle, as
     ((angle, height), (angle, height)) in the arc's direction; the arc's own end heights exact."""
     ccw = e.a1 >= e.a0
-    lo, hi = (e.a0, e.a1) if ccw else (e.a1, e.a0)
+    lo, hi = _angles(e)
     k = math.floor(lo / math.pi - 0.5) + 1
     cuts = []
     while (k + 0.5) * math.pi < hi:
@@ -500,9 +509,7 @@ def difference(a: Region, b: Region) -> Difference:
             b_kept.append(piece)
     new_loops = kept_loops + _chain(new, verts.points)
     lost_loops = _chain(lost, verts.points)
-    new_area = sum(edge_area(e) for loop in new_loops for e in loop)
-    lost_area = sum(edge_area(e) for loop in lost_loops for e in loop)
-    return Difference(tuple(new_loops), new_area, lost_area, tuple(b_kept))
+    return Difference(tuple(new_loops), region_area(new_loops), region_area(lost_loops), tuple(b_kept))
 
 
 def _union_box(boxes) -> tuple[float, float, float, float]:

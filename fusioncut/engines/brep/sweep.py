@@ -264,10 +264,10 @@ def _region_pieces(r: float, move: Move, open_start: bool):
         if move.plane != ArcPlane.XY or move.is_helix:
             return None
         return _cylinder_arc_region(r, move, open_start)
-    if abs(p1[2] - p0[2]) < _EPS and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) >= _SHORT:
-        return _cylinder_line_region(r, p0, p1, open_start)
     if math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _SHORT:
         return "disk", (p1[0], p1[1], min(p0[2], p1[2]))
+    if abs(p1[2] - p0[2]) < _EPS:
+        return _cylinder_line_region(r, p0, p1, open_start)
     return None
 
 
