@@ -12,6 +12,9 @@ phases per batch of CLs:
    single-process engine would, and asks each worker for the machine arcs of its contact faces at
    those heights; arcs split at a partition's wall are joined again by ``merge_arcs``.
 
+Workers do not wait for each other: each has one call in flight, which slices a batch the driver
+has merged and cuts its own next batch, up to ``ahead`` batches beyond the one being handed out.
+
 The per-cell Booleans are the same operations on the same shapes as in one process, so the results
 equal the single-process engine's (sums may differ in the last bit by their order). One difference:
 when a Boolean fails on one worker's cells the others have already cut theirs; the CL is reported
@@ -21,20 +24,24 @@ The engine offers what :func:`fusioncut.runner.run_toolpath` uses of :class:`BRe
 ``process`` (also from a resumed CL), ``save_checkpoint`` / ``load_checkpoint`` in the same files
 (so a checkpoint of either engine resumes in the other), ``ipw``, ``ipw_volume``. Shapes cross
 processes as binary BRep bytes, only when the workers are seeded and when the driver asks for the
-workpiece. Workers run a whole batch ahead of the CLs the driver has handed out, so they keep the
-state of their cells after every CL of the batch: a checkpoint, snapshot or Ctrl-C in the middle of
-a batch gets the workpiece as it was after the last CL handed out, never a later one.
+workpiece. Workers run batches ahead of the CLs the driver has handed out, so they keep the
+state of their cells after every CL of the batches since the one being handed out: a checkpoint,
+snapshot or Ctrl-C in the middle of a batch gets the workpiece as it was after the last CL handed
+out, never a later one.
 
 Dask distributed runs an embedded ``LocalCluster`` (worker processes, one thread each) unless a
 scheduler address is given; then the cells are split among all of that scheduler's workers.
 """
 from __future__ import annotations
 
+import asyncio
 import io
 import logging
+import os
 import signal
 import threading
 import time
+from collections import Counter, deque
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -93,24 +100,35 @@ class PartitionWorker:
     """Dask actor: some cells of the IPW (as of CL ``position``) and the program's CL sequence."""
 
     def __init__(self, cells: bytes, records: list, stock_volume: float, options: EngineOptions,
-                 toolpath: Toolpath, default_tool: MillingTool | None, position: int) -> None:
-        # one worker per core: the kernel's own threads would only compete with the other workers
-        self.engine = BRepEngine(replace(options, kernel_threads=False))
+                 toolpath: Toolpath, default_tool: MillingTool | None, position: int,
+                 workers_on_host: int = 1, kept_batches: int = 1) -> None:
+        # the kernel's own threads only where this host has cores the workers leave free: with a
+        # worker per core they would compete with the other workers (EngineOptions.kernel_threads);
+        # a lone worker on 2 cores ran the quick benchmark 7% faster with them
+        spare_cores = (os.cpu_count() or 1) > workers_on_host
+        self.engine = BRepEngine(replace(options, kernel_threads=options.kernel_threads and spare_cores))
         self.engine.cells = unpack_cells(cells, records)
         self.engine.adopt_layers()
         # the whole stock's: the engine's "nothing removed" threshold is relative to it
         self.engine.stock_volume = stock_volume
         self.sequence = list(cl_sequence(toolpath, options, default_tool))
-        self.contacts: dict[int, list] = {}
+        self.contacts: dict[int, list] = {}  # CL index -> flute contact faces, until sliced
         self.position = position  # the first CL these cells have not seen
-        self.history: dict[int, list[Cell]] = {}  # CL index -> the cells before that CL (this batch)
+        # CL index -> the cells before that CL, over the last ``kept_batches`` batches cut
+        self.history: dict[int, list[Cell]] = {}
+        self.kept_batches = kept_batches
+        self._starts: deque[int] = deque()
 
     def cut_batch(self, start: int, stop: int) -> list[CutOutcome]:
         if start != self.position:
             raise ValueError(f"the worker's cells are at CL {self.position}, not {start}")
-        self.contacts.clear()
+        self._starts.append(start)
+        if len(self._starts) > self.kept_batches:
+            self._starts.popleft()
+            self.history = {i: cells for i, cells in self.history.items() if i >= self._starts[0]}
         # copies of the cells' records, not of the shapes: a cut replaces a cell's shape, never edits it
-        self.history = {start: [replace(c) for c in self.engine.cells]}
+        if start not in self.history:
+            self.history[start] = [replace(c) for c in self.engine.cells]
         out = []
         for index, move, tool, feed_angle in self.sequence[start:stop]:
             try:
@@ -125,8 +143,17 @@ class PartitionWorker:
         self.position = stop
         return out
 
-    def slice_batch(self, heights: dict[int, list[float]]) -> dict[int, list[list[tuple[float, float]]] | str]:
-        """Machine arcs of this worker's contact faces at the given heights; an error message per CL."""
+    def work(self, slicing: tuple[dict[int, list[float]], int] | None,
+             cutting: tuple[int, int] | None) -> tuple[dict | None, list[CutOutcome] | None]:
+        """:meth:`slice_batch` of a batch cut before, then :meth:`cut_batch` of the next one, in one
+        call: Dask may run an actor's calls in another order than they were made."""
+        return (None if slicing is None else self.slice_batch(*slicing),
+                None if cutting is None else self.cut_batch(*cutting))
+
+    def slice_batch(self, heights: dict[int, list[float]],
+                    stop: int) -> dict[int, list[list[tuple[float, float]]] | str]:
+        """Machine arcs of this worker's contact faces at the given heights; an error message per CL.
+        The contact faces of CLs before ``stop`` are dropped afterwards (their batch is sliced)."""
         out: dict[int, list[list[tuple[float, float]]] | str] = {}
         for index, zs in heights.items():
             flute = self.contacts.get(index)
@@ -137,6 +164,7 @@ class PartitionWorker:
                 out[index] = [slice_intervals(flute, tip, z) for z in zs]
             except Exception as exc:  # noqa: BLE001
                 out[index] = f"contact analysis failed: {exc}"
+        self.contacts = {i: faces for i, faces in self.contacts.items() if i >= stop}
         return out
 
     def _cells_at(self, next_cl: int) -> list[Cell]:
@@ -144,7 +172,8 @@ class PartitionWorker:
             return self.engine.cells
         if next_cl in self.history:
             return self.history[next_cl]
-        raise ValueError(f"the worker keeps its cells at CL {self.position} and within its last batch, not at {next_cl}")
+        raise ValueError(f"the worker keeps its cells at CL {self.position} and within its last "
+                         f"{self.kept_batches} batches, not at {next_cl}")
 
     def cells_at(self, next_cl: int) -> tuple[bytes, list[int]]:
         """The cells before CL ``next_cl`` (see :func:`pack_cells`)."""
@@ -197,7 +226,8 @@ class ParallelBRepEngine:
     options: EngineOptions = field(default_factory=EngineOptions)
     workers: int = 2
     scheduler: str | None = None
-    batch: int = 200
+    batch: int = 100
+    ahead: int = 3  # batches the workers cut ahead of the one handed out (see process)
     stock_volume: float = 0.0
     removed_total: float = 0.0
     _client: Any = field(default=None, init=False, repr=False)
@@ -236,7 +266,13 @@ class ParallelBRepEngine:
             log.info("connected to the Dask scheduler at %s (%d workers)", self.scheduler,
                      len(self._client.scheduler_info()["workers"]))
             return
-        with _children_ignore_ctrl_c():
+        import dask
+
+        # Dask starts its worker processes with MALLOC_TRIM_THRESHOLD_=65536, so that glibc hands
+        # freed memory back to the system at once; the kernel allocates and frees many small blocks
+        # per Boolean, and with it a worker ran the quick benchmark's CLs 5-9% slower
+        keep_malloc = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+        with _children_ignore_ctrl_c(), dask.config.set(keep_malloc):
             self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
                                          dashboard_address=":0", silence_logs=logging.ERROR)
         try:
@@ -317,39 +353,113 @@ class ParallelBRepEngine:
             return
         self._seed(toolpath, default_tool, start_at)
         actors = self._actors
-        for start in range(start_at, len(sequence), self.batch):
-            stop = min(len(sequence), start + self.batch)
-            t0 = time.perf_counter()
-            per_worker = [f.result() for f in [a.cut_batch(start, stop) for a in actors]]
-            outcomes = []
-            for k in range(stop - start):
-                merged = per_worker[0][k]
-                for other in per_worker[1:]:
-                    merged = merged.merged(other[k])
-                outcomes.append(merged)
-            plans = {start + k: slice_heights(o.z_range, sequence[start + k][2], self.options.slice_height)
-                     for k, o in enumerate(outcomes)}
-            asks = {i: [z for z, active in plan if active] for i, plan in plans.items() if plan}
-            answers = [f.result() for f in [a.slice_batch(asks) for a in actors]]
-            wall = (time.perf_counter() - t0) * 1e3 / (stop - start)
-            for k, outcome in enumerate(outcomes):
-                index, move, tool, feed_angle = sequence[start + k]
-                plan = plans[index]
-                active_arcs: list[list[tuple[float, float]]] = [[] for _ in asks.get(index, [])]
-                for answer in answers:
-                    got = answer.get(index, [])
-                    if isinstance(got, str):
-                        outcome.status, outcome.reason = CLStatus.FAILED, got
-                        continue
-                    for j, arcs in enumerate(got):
-                        active_arcs[j].extend(arcs)
-                merged_arcs = iter([merge_arcs(a) for a in active_arcs])
-                arcs = [next(merged_arcs) if active else [] for _, active in plan]
-                outcome.timings["total"] = wall  # the batch's wall time shared out over its CLs
-                self.removed_total += outcome.removed
-                # before the yield: whoever gets this CL sees the workpiece after it
-                self._next = index + 1
-                yield engagement_map(cl_base(index, move, tool, feed_angle), tool, move, outcome, plan, arcs)
+        batches = [(start, min(len(sequence), start + self.batch))
+                   for start in range(start_at, len(sequence), self.batch)]
+        # Each worker has one call in flight at a time (Dask may deliver an actor's calls out of
+        # order), which slices a batch merged before and cuts its next one. A worker cuts up to
+        # ``ahead`` batches beyond the one being handed out, without waiting for the others: with
+        # every worker waiting for the slowest after each batch, the full benchmark's two workers
+        # idled 23% of the time.
+        cut: list[dict[int, list[CutOutcome]]] = [{} for _ in actors]  # per worker: batch -> outcomes
+        arcs: list[dict[int, dict]] = [{} for _ in actors]  # per worker: batch -> its answer
+        to_slice: list[deque[int]] = [deque() for _ in actors]  # merged batches a worker has not sliced
+        next_cut = [0] * len(actors)
+        running: dict[Any, tuple[int, int | None, int | None]] = {}  # future -> worker, sliced, cut
+        merged: dict[int, tuple[list[CutOutcome], dict, dict]] = {}  # batch -> outcomes, plans, asks
+        n_merged = handed = 0
+
+        def submit(k: int) -> None:
+            sliced = to_slice[k].popleft() if to_slice[k] else None
+            cutting = next_cut[k] if next_cut[k] < min(len(batches), handed + self.ahead) else None
+            if sliced is None and cutting is None:
+                return
+            if cutting is not None:
+                next_cut[k] += 1
+            future = actors[k].work(None if sliced is None else (merged[sliced][2], batches[sliced][1]),
+                                    None if cutting is None else batches[cutting])
+            running[future] = (k, sliced, cutting)
+
+        for k in range(len(actors)):
+            submit(k)
+        mark = time.perf_counter()
+        while handed < len(batches):
+            if not running:
+                raise RuntimeError(f"the parallel engine stalled at batch {handed} of {len(batches)}")
+            self._wait_any(list(running))
+            for future in [f for f in running if f.done()]:
+                k, sliced, cutting = running.pop(future)
+                answer, outcomes = future.result()
+                if sliced is not None:
+                    arcs[k][sliced] = answer
+                if cutting is not None:
+                    cut[k][cutting] = outcomes
+            while n_merged < len(batches) and all(n_merged in c for c in cut):
+                merged[n_merged] = self._merge(sequence, batches[n_merged][0], [c.pop(n_merged) for c in cut])
+                for queue in to_slice:
+                    queue.append(n_merged)
+                n_merged += 1
+            while handed < n_merged and all(handed in a for a in arcs):
+                answers = [a.pop(handed) for a in arcs]
+                outcomes, plans, asks = merged.pop(handed)
+                start, stop = batches[handed]
+                handed += 1
+                # the wall time since the last batch was handed out, shared out over this one's CLs
+                wall = (time.perf_counter() - mark) * 1e3 / (stop - start)
+                yield from self._hand_out(sequence, start, outcomes, plans, asks, answers, wall)
+                mark = time.perf_counter()
+            busy = {k for k, *_ in running.values()}
+            for k in range(len(actors)):
+                if k not in busy:
+                    submit(k)
+
+    def _wait_any(self, futures: list) -> None:
+        """Until one of the actor calls ``futures`` is answered (``distributed.wait`` takes task
+        futures only)."""
+        async def first() -> None:
+            waiting = [asyncio.ensure_future(f) for f in futures]
+            try:
+                await asyncio.wait(waiting, return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                for w in waiting:
+                    w.cancel()
+
+        self._client.sync(first)
+
+    def _merge(self, sequence: list, start: int,
+               per_worker: list[list[CutOutcome]]) -> tuple[list[CutOutcome], dict, dict]:
+        """A batch's outcomes merged over the workers, its slice plans and the heights to ask for."""
+        outcomes = []
+        for k in range(len(per_worker[0])):
+            outcome = per_worker[0][k]
+            for other in per_worker[1:]:
+                outcome = outcome.merged(other[k])
+            outcomes.append(outcome)
+        plans = {start + k: slice_heights(o.z_range, sequence[start + k][2], self.options.slice_height)
+                 for k, o in enumerate(outcomes)}
+        asks = {i: [z for z, active in plan if active] for i, plan in plans.items() if plan}
+        return outcomes, plans, asks
+
+    def _hand_out(self, sequence: list, start: int, outcomes: list[CutOutcome], plans: dict, asks: dict,
+                  answers: list[dict], wall: float) -> Iterator[EngagementMap]:
+        """The engagement maps of a batch, from the merged outcomes and the workers' arcs."""
+        for k, outcome in enumerate(outcomes):
+            index, move, tool, feed_angle = sequence[start + k]
+            plan = plans[index]
+            active_arcs: list[list[tuple[float, float]]] = [[] for _ in asks.get(index, [])]
+            for answer in answers:
+                got = answer.get(index, [])
+                if isinstance(got, str):
+                    outcome.status, outcome.reason = CLStatus.FAILED, got
+                    continue
+                for j, arcs in enumerate(got):
+                    active_arcs[j].extend(arcs)
+            merged_arcs = iter([merge_arcs(a) for a in active_arcs])
+            arcs = [next(merged_arcs) if active else [] for _, active in plan]
+            outcome.timings["total"] = wall
+            self.removed_total += outcome.removed
+            # before the yield: whoever gets this CL sees the workpiece after it
+            self._next = index + 1
+            yield engagement_map(cl_base(index, move, tool, feed_angle), tool, move, outcome, plan, arcs)
 
     # -- internals --------------------------------------------------------------------------------------
     def _seed(self, toolpath: Toolpath, default_tool: MillingTool | None, start_at: int) -> None:
@@ -359,10 +469,15 @@ class ParallelBRepEngine:
         cells = self._gather()
         self._drop_actors()
         self._next = start_at
-        addresses = sorted(self._client.scheduler_info()["workers"])
+        workers = self._client.scheduler_info()["workers"]
+        addresses = sorted(workers)
         parts = cell_partition(len(cells), max(1, len(addresses)))
+        hosts = Counter(workers[addresses[k % len(addresses)]]["host"] for k in range(len(parts)))
         futures = [self._client.submit(PartitionWorker, *pack_cells([cells[i] for i in ids]), self.stock_volume,
-                                       self.options, toolpath, default_tool, start_at, actor=True,
+                                       self.options, toolpath, default_tool, start_at,
+                                       hosts[workers[addresses[k % len(addresses)]]["host"]],
+                                       # the batch being handed out and those cut ahead of it
+                                       self.ahead + 1, actor=True,
                                        workers=[addresses[k % len(addresses)]], allow_other_workers=False)
                    for k, ids in enumerate(parts)]
         self._actors = [f.result() for f in futures]

@@ -121,6 +121,34 @@ def test_dask_workers_equal_one_process(whole):
     assert_same(maps, whole)
 
 
+def test_dask_workers_cut_ahead_and_hand_over_the_workpiece_of_the_last_cl_handed_out(whole):
+    """Batches of 2 CLs, 3 cut ahead: stopped after CL 9, the workers have cut further, yet the
+    workpiece they hand over (its volume, its cells) is the one after CL 9; going on from there
+    ends with the whole workpiece's maps."""
+    pytest.importorskip("distributed")
+    from fusioncut.engines.brep.parallel import ParallelBRepEngine
+
+    options = EngineOptions(max_segment_length=3.0, cell_size=10.0, fuzzy=1e-6)
+    with ParallelBRepEngine(options, workers=2, batch=2, ahead=3) as engine:
+        maps = []
+        for m in engine.run(program(), STOCK):
+            maps.append(m)
+            if m.cl_index == 9:
+                break
+        removed = sum(m.removed_volume for m in maps)
+        assert removed > 0
+        assert engine.ipw_volume == pytest.approx(engine.stock_volume - removed, rel=1e-9)
+        cells = engine.cells  # fetched from the workers, as a checkpoint fetches them
+        maps += list(engine.process(program(), start_at=10))
+        conserved(engine)
+    one = BRepEngine(options)
+    one.start(STOCK)
+    for _, _m in zip(range(10), one.process(program())):
+        pass
+    assert sum(c.volume for c in cells) == pytest.approx(one.ipw_volume, rel=1e-9)
+    assert_same(maps, whole)
+
+
 @pytest.mark.parametrize("n_cells, parts", [(40, 2), (40, 3), (7, 2), (3, 4), (1, 1)])
 def test_cell_partition_deals_out_every_cell_once_and_splits_neighbours(n_cells, parts):
     from fusioncut.engines.brep.parallel import cell_partition
