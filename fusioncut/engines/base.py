@@ -41,8 +41,8 @@ class EngineOptions:
 
     ``kernel_threads``: let the kernel run each Boolean on its own threads. Alone on 2 cores this
     took the quick benchmark's adaptive median from 68 to 59–65 ms; with two runs sharing the cores it
-    cost 6–13% (1055_utab, first 300 CLs), so the parallel engine's workers, which have a core each,
-    turn it off.
+    cost 6–13% (1055_utab, first 300 CLs), so the parallel engine's workers turn it off where they
+    have a core each, and keep it where their host has a core to spare (a lone worker on 2 cores).
 
     ``ceiling_pixel``: pixel size (mm) of the material's height bounds
     (:class:`fusioncut.engines.ceiling.MaterialCeiling`), with which a cell whose material the sweep
