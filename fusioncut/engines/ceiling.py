@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
 from fusioncut.model.tools import MillingTool, ProfileArc
@@ -74,26 +75,99 @@ class SweepFootprint:
             xs, ys = (cx - self.rho, cx + self.rho), (cy - self.rho, cy + self.rho)
         return min(xs) - margin, min(ys) - margin, max(xs) + margin, max(ys) + margin
 
+    @property
+    def path(self) -> tuple:
+        """The path as the map's compiled kernels take it (see :func:`_path_distance`)."""
+        cx, cy = self.center if self.center is not None else (0.0, 0.0)
+        return (self.p0[0], self.p0[1], self.p1[0], self.p1[1], self.center is not None, cx, cy, self.rho,
+                self.start_angle, self.sweep)
+
     def distance(self, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
         """Distance (mm) from the points (X, Y) to the path (arrays broadcast together)."""
-        if self.center is None:
-            return _segment_distance(X, Y, self.p0, self.p1)
-        cx, cy = self.center
-        on_arc = np.abs(np.hypot(X - cx, Y - cy) - self.rho)
-        if abs(self.sweep) >= 2 * math.pi:
-            return on_arc
-        rel = (np.arctan2(Y - cy, X - cx) - self.start_angle) * math.copysign(1.0, self.sweep) % (2 * math.pi)
-        d_ends = np.minimum(np.hypot(X - self.p0[0], Y - self.p0[1]), np.hypot(X - self.p1[0], Y - self.p1[1]))
-        return np.where(rel <= abs(self.sweep), on_arc, d_ends)
+        X, Y = np.broadcast_arrays(np.asarray(X, dtype=float), np.asarray(Y, dtype=float))
+        return _distances(X.ravel(), Y.ravel(), *self.path).reshape(X.shape)
 
 
-def _segment_distance(X: np.ndarray, Y: np.ndarray, p0: tuple[float, float], p1: tuple[float, float]) -> np.ndarray:
-    dx, dy = p1[0] - p0[0], p1[1] - p0[1]
-    L2 = dx * dx + dy * dy
-    if L2 == 0.0:
-        return np.hypot(X - p0[0], Y - p0[1])
-    t = np.clip(((X - p0[0]) * dx + (Y - p0[1]) * dy) / L2, 0.0, 1.0)
-    return np.hypot(X - (p0[0] + t * dx), Y - (p0[1] + t * dy))
+# The map's tests and clears visit every pixel of a window around each CL's path (~15,000 at 0.1 mm
+# for a 12 mm tool): compiled loops that stop at the first pixel that decides, instead of a dozen
+# numpy passes over the window (~0.18 ms of a ~0.8 ms adaptive CL, and each parallel worker pays it
+# for every CL of the program).
+@njit(cache=True)
+def _path_distance(x: float, y: float, p0x: float, p0y: float, p1x: float, p1y: float, arc: bool,
+                   cx: float, cy: float, rho: float, a0: float, sweep: float) -> float:
+    """Distance (mm) from (x, y) to the segment p0-p1, or to the arc of radius ``rho`` about
+    (cx, cy) from angle ``a0`` through the signed ``sweep`` (rad) when ``arc``."""
+    if not arc:
+        dx, dy = p1x - p0x, p1y - p0y
+        length2 = dx * dx + dy * dy
+        if length2 == 0.0:
+            return math.hypot(x - p0x, y - p0y)
+        t = min(max(((x - p0x) * dx + (y - p0y) * dy) / length2, 0.0), 1.0)
+        return math.hypot(x - (p0x + t * dx), y - (p0y + t * dy))
+    on_arc = abs(math.hypot(x - cx, y - cy) - rho)
+    if abs(sweep) >= 2 * math.pi:
+        return on_arc
+    rel = ((math.atan2(y - cy, x - cx) - a0) * math.copysign(1.0, sweep)) % (2 * math.pi)
+    if rel <= abs(sweep):
+        return on_arc
+    return min(math.hypot(x - p0x, y - p0y), math.hypot(x - p1x, y - p1y))
+
+
+@njit(cache=True)
+def _distances(xs, ys, p0x, p0y, p1x, p1y, arc, cx, cy, rho, a0, sweep):
+    out = np.empty(xs.shape[0])
+    for k in range(xs.shape[0]):
+        out[k] = _path_distance(xs[k], ys[k], p0x, p0y, p1x, p1y, arc, cx, cy, rho, a0, sweep)
+    return out
+
+
+@njit(cache=True)
+def _boxes_reached(heights, i0, i1, j0, j1, above, ox, oy, pixel, reach, boxes,
+                   p0x, p0y, p1x, p1y, arc, cx, cy, rho, a0, sweep):
+    """For each pixel range ``boxes[b] = (i_lo, j_lo, i_hi, j_hi)`` (half open), whether a pixel of
+    the window [i0, i1) x [j0, j1) in it lies above ``above`` and nearer than ``reach`` to the path
+    (its centre's distance less half its diagonal)."""
+    n = boxes.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    left = n
+    half_diagonal = pixel * math.sqrt(0.5)
+    for i in range(i0, i1):
+        x = ox + (i + 0.5) * pixel
+        for j in range(j0, j1):
+            if not heights[i, j] > above:
+                continue
+            wanted = False
+            for b in range(n):
+                if not out[b] and boxes[b, 0] <= i < boxes[b, 2] and boxes[b, 1] <= j < boxes[b, 3]:
+                    wanted = True
+                    break
+            if not wanted:
+                continue
+            y = oy + (j + 0.5) * pixel
+            if _path_distance(x, y, p0x, p0y, p1x, p1y, arc, cx, cy, rho, a0, sweep) - half_diagonal < reach:
+                for b in range(n):
+                    if not out[b] and boxes[b, 0] <= i < boxes[b, 2] and boxes[b, 1] <= j < boxes[b, 3]:
+                        out[b] = True
+                        left -= 1
+                if left == 0:
+                    return out
+    return out
+
+
+@njit(cache=True)
+def _lower(heights, i0, i1, j0, j1, z_clear, z_top, ox, oy, pixel, r_clear,
+           p0x, p0y, p1x, p1y, arc, cx, cy, rho, a0, sweep):
+    """Lower to ``z_clear`` every pixel of the window above it, whose bound ``z_top`` reaches and
+    which lies wholly within ``r_clear`` of the path (its centre's distance plus half its diagonal)."""
+    half_diagonal = pixel * math.sqrt(0.5)
+    for i in range(i0, i1):
+        x = ox + (i + 0.5) * pixel
+        for j in range(j0, j1):
+            h = heights[i, j]
+            if h > z_clear and h <= z_top:
+                y = oy + (j + 0.5) * pixel
+                if _path_distance(x, y, p0x, p0y, p1x, p1y, arc, cx, cy, rho, a0, sweep) + half_diagonal <= r_clear:
+                    heights[i, j] = z_clear
 
 
 @lru_cache(maxsize=64)
@@ -162,59 +236,38 @@ class MaterialCeiling:
         self.pixel = pixel
         self.origin = (lo[0] - pixel, lo[1] - pixel)  # one pixel of margin all round
         self.heights = np.full((math.ceil(w / pixel) + 2, math.ceil(h / pixel) + 2), float(top))
-        self.half_diagonal = pixel * math.sqrt(0.5)
 
-    def _window(self, fp: SweepFootprint, margin: float, above: float):
-        """The pixel ranges around the footprint, and of the pixels there whose height bound is above
-        ``above`` (mm) their indices in the window and the distances of their centres to the path.
-
-        Only those pixels can matter to a test or a clear, and along a trochoid most of the window
-        lies in the slot already cut: measuring the distance of just these took the map's share of a
-        benchmark CL from ~0.8 ms to ~0.3 ms (the same pixels, the same formula)."""
+    def _window(self, fp: SweepFootprint, margin: float) -> tuple[int, int, int, int] | None:
+        """The pixel ranges [i0, i1) x [j0, j1) around the footprint's path grown by ``margin``."""
         x0, y0, x1, y1 = fp.box(margin)
         i0, j0 = self._index(x0, y0)
         i1, j1 = self._index(x1, y1)
         nx, ny = self.heights.shape
         i0, j0, i1, j1 = max(i0, 0), max(j0, 0), min(i1 + 1, nx), min(j1 + 1, ny)
-        if i0 >= i1 or j0 >= j1:
-            return None
-        si, sj = slice(i0, i1), slice(j0, j1)
-        ii, jj = np.nonzero(self.heights[si, sj] > above)
-        p = self.pixel
-        xs = self.origin[0] + (ii + i0 + 0.5) * p
-        ys = self.origin[1] + (jj + j0 + 0.5) * p
-        return si, sj, ii, jj, fp.distance(xs, ys)
+        return None if i0 >= i1 or j0 >= j1 else (i0, i1, j0, j1)
 
     def _index(self, x: float, y: float) -> tuple[int, int]:
         return math.floor((x - self.origin[0]) / self.pixel), math.floor((y - self.origin[1]) / self.pixel)
 
     def may_cut(self, fp: SweepFootprint, boxes: list[Box]) -> list[bool]:
         """For each box (of a workpiece cell's material), whether the sweep may remove material in it."""
-        win = self._window(fp, fp.reach + self.pixel, fp.z_low + NOISE)
-        if win is None:
+        win = self._window(fp, fp.reach + self.pixel)
+        if win is None or not boxes:
             return [False] * len(boxes)
-        si, sj, ii, jj, d = win
-        hot = d - self.half_diagonal < fp.reach
-        ii, jj = ii[hot] + si.start, jj[hot] + sj.start
-        if not len(ii):
-            return [False] * len(boxes)
-        out = []
-        for (lo, hi) in boxes:
+        ranges = np.empty((len(boxes), 4), dtype=np.int64)
+        for b, (lo, hi) in enumerate(boxes):
             # every pixel that overlaps the box, and one more on each side
             a0, b0 = self._index(lo[0], lo[1])
             a1, b1 = self._index(hi[0], hi[1])
-            out.append(bool(((ii >= a0 - 1) & (ii < a1 + 2) & (jj >= b0 - 1) & (jj < b1 + 2)).any()))
-        return out
+            ranges[b] = (a0 - 1, b0 - 1, a1 + 2, b1 + 2)
+        reached = _boxes_reached(self.heights, *win, fp.z_low + NOISE, *self.origin, self.pixel, fp.reach,
+                                 ranges, *fp.path)
+        return [bool(r) for r in reached]
 
     def clear(self, fp: SweepFootprint) -> None:
         """Record that the sweep has been removed from the material."""
         if fp.r_clear is None:
             return
-        # only pixels above the tip can be lowered
-        win = self._window(fp, fp.r_clear + self.pixel, fp.z_clear)
-        if win is None:
-            return
-        si, sj, ii, jj, d = win
-        view = self.heights[si, sj]
-        inside = (d + self.half_diagonal <= fp.r_clear) & (view[ii, jj] <= fp.z_top)
-        view[ii[inside], jj[inside]] = fp.z_clear
+        win = self._window(fp, fp.r_clear + self.pixel)
+        if win is not None:
+            _lower(self.heights, *win, fp.z_clear, fp.z_top, *self.origin, self.pixel, fp.r_clear, *fp.path)
