@@ -48,7 +48,7 @@ from OCP.TopAbs import TopAbs_SOLID
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
-from fusioncut.engines.ceiling import MaterialCeiling, footprint, tool_radii
+from fusioncut.engines.ceiling import MaterialCeiling, footprint, load_kernels, tool_radii
 from fusioncut.engines.brep.contact import arc_contacts, find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import (
     CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, layer_from_state, solid_layers, stack_box,
@@ -164,6 +164,10 @@ class BRepEngine:
     # cylinder a cylindrical tool emptied (radius 0 for other tools) and the tool's repr; a cut
     # starting there may leave that tool out of its sweep (see _starts_cleared)
     cleared: tuple[float, float, float, float, float, str] | None = field(default=None, init=False)
+
+    def __post_init__(self) -> None:
+        if self.options.ceiling_pixel is not None and self.options.sweep == "exact":
+            load_kernels()  # here, not in the first CL's time
 
     # -- public -------------------------------------------------------------------------------
     def start(self, stock: Stock | TopoDS_Shape) -> None:
