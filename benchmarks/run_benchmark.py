@@ -1,8 +1,8 @@
 """Benchmark: FusionCut's fast path against the published method, in the same run on the same CLs.
 
     python benchmarks/run_benchmark.py --quick --slicing 1 --workers ''   # under a minute on 2 cores
-    python benchmarks/run_benchmark.py --quick          # ~1.5 min: 1 and 0.2 mm, 1 and 2 Dask workers
-    python benchmarks/run_benchmark.py                  # the full Titan-like program, ~8 min
+    python benchmarks/run_benchmark.py --quick          # ~1 min: 1 and 0.2 mm, 1 and 2 Dask workers
+    python benchmarks/run_benchmark.py                  # the full Titan-like program, ~4.5 min
 
 * **Program**: the Titan-like part of :mod:`titan_program`, written as G-code and read back through
   FusionCut's G-code reader (tools from the Fusion-style tool comments); moves are split into CL
@@ -151,7 +151,7 @@ def fmt(x, spec=".1f") -> str:
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--quick", action="store_true", help="a reduced program (~1.5 min; under 1 min with --slicing 1 --workers '')")
+    ap.add_argument("--quick", action="store_true", help="a reduced program (~1 min; less with --slicing 1 --workers '')")
     ap.add_argument("--tiny", action="store_true", help="a smoke-test size (seconds)")
     ap.add_argument("--slicing", default="1,0.2", help="slice heights in mm, comma separated")
     ap.add_argument("--baseline-cls", type=int, default=None, help="CLs per operation for the baseline")

@@ -136,21 +136,20 @@ def _boxes_reached(heights, i0, i1, j0, j1, above, ox, oy, pixel, reach, boxes,
         for j in range(j0, j1):
             if not heights[i, j] > above:
                 continue
-            wanted = False
+            reached = -1  # not measured yet: only for a pixel that an undecided box holds
             for b in range(n):
-                if not out[b] and boxes[b, 0] <= i < boxes[b, 2] and boxes[b, 1] <= j < boxes[b, 3]:
-                    wanted = True
+                if out[b] or not (boxes[b, 0] <= i < boxes[b, 2] and boxes[b, 1] <= j < boxes[b, 3]):
+                    continue
+                if reached < 0:
+                    y = oy + (j + 0.5) * pixel
+                    d = _path_distance(x, y, p0x, p0y, p1x, p1y, arc, cx, cy, rho, a0, sweep)
+                    reached = 1 if d - half_diagonal < reach else 0
+                if reached == 0:
                     break
-            if not wanted:
-                continue
-            y = oy + (j + 0.5) * pixel
-            if _path_distance(x, y, p0x, p0y, p1x, p1y, arc, cx, cy, rho, a0, sweep) - half_diagonal < reach:
-                for b in range(n):
-                    if not out[b] and boxes[b, 0] <= i < boxes[b, 2] and boxes[b, 1] <= j < boxes[b, 3]:
-                        out[b] = True
-                        left -= 1
-                if left == 0:
-                    return out
+                out[b] = True
+                left -= 1
+            if left == 0:
+                return out
     return out
 
 

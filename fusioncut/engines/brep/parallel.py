@@ -482,14 +482,13 @@ class ParallelBRepEngine:
         workers = self._client.scheduler_info()["workers"]
         addresses = sorted(workers)
         parts = cell_partition(len(cells), max(1, len(addresses)))
-        hosts = Counter(workers[addresses[k % len(addresses)]]["host"] for k in range(len(parts)))
+        placed = [addresses[k % len(addresses)] for k in range(len(parts))]
+        hosts = Counter(workers[a]["host"] for a in placed)
         futures = [self._client.submit(PartitionWorker, *pack_cells([cells[i] for i in ids]), self.stock_volume,
-                                       self.options, toolpath, default_tool, start_at,
-                                       hosts[workers[addresses[k % len(addresses)]]["host"]],
+                                       self.options, toolpath, default_tool, start_at, hosts[workers[a]["host"]],
                                        # the batch being handed out and those cut ahead of it
-                                       self.ahead + 1, actor=True,
-                                       workers=[addresses[k % len(addresses)]], allow_other_workers=False)
-                   for k, ids in enumerate(parts)]
+                                       self.ahead + 1, actor=True, workers=[a], allow_other_workers=False)
+                   for ids, a in zip(parts, placed)]
         self._actors = [f.result() for f in futures]
         self._parts = parts
         self._cells = None
