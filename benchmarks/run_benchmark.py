@@ -17,7 +17,8 @@
   windows matters: the published method's cost grows as the workpiece fills with faces, so windows
   at the start alone would flatter it. Starting from our merged IPW still flatters it (its own IPW
   would carry the sampled copies' scallops).
-* **Parallel**: the same program at 1 mm on Dask with 1 and 2 workers (``--workers``).
+* **Parallel**: the same program at 1 mm on Dask with 1 and 2 workers (``--workers``), and the largest
+  peak RSS of a worker process (``peak RSS`` is this process's: the driver's and the single-process runs').
 
 A *processed* CL is one whose sweep reached a Boolean: not skipped as an air cut by bounding boxes or
 by the material's height bounds. ``ms/CL`` is an operation's total time over all its CLs.
@@ -135,14 +136,16 @@ def run_baseline(toolpath, snapshots: dict, n: int, slice_height: float) -> dict
     return out
 
 
-def run_parallel(toolpath, stock, workers: int) -> float:
+def run_parallel(toolpath, stock, workers: int) -> tuple[float, float]:
+    """(seconds, the largest peak RSS of a worker process in MB) of the program on Dask workers."""
     from fusioncut.engines.brep.parallel import ParallelBRepEngine
 
     with ParallelBRepEngine(EngineOptions(**OURS), workers=workers) as engine:
         t0 = time.perf_counter()
         for _ in engine.run(toolpath, stock):
             pass
-        return time.perf_counter() - t0
+        seconds = time.perf_counter() - t0
+        return seconds, max(engine.workers_peak_rss_mb().values())
 
 
 def fmt(x, spec=".1f") -> str:
@@ -172,7 +175,8 @@ def main(argv: list[str] | None = None) -> dict:
     snapshots: dict = dict.fromkeys(window_starts(toolpath))
     ours = {h: run_ours(toolpath, stock, h, snapshots if k == 0 else None, args.whole) for k, h in enumerate(heights)}
     baseline = run_baseline(toolpath, snapshots, n_base, heights[0])
-    parallel = {int(w): run_parallel(toolpath, stock, int(w)) for w in args.workers.split(",") if w}
+    runs = {int(w): run_parallel(toolpath, stock, int(w)) for w in args.workers.split(",") if w}
+    parallel = {w: seconds for w, (seconds, _) in runs.items()}
     report = {"size": "tiny" if args.tiny else "quick" if args.quick else "full", "whole": args.whole,
               "program": str(program), "slice_heights_mm": heights, "baseline_cls_per_op": n_base,
               "peak_rss_mb": rss_mb(), "wall_s": time.perf_counter() - t_start, "operations": {}}
@@ -194,6 +198,7 @@ def main(argv: list[str] | None = None) -> dict:
     report["failed_cls"] = {f"{h:g}": ours[h]["failed"] for h in heights}
     report["conservation"] = {f"{h:g}": ours[h]["conservation"] for h in heights}
     report["parallel_seconds"] = parallel
+    report["worker_peak_rss_mb"] = {w: rss for w, (_, rss) in runs.items()}
     if 1 in parallel and 2 in parallel:
         report["parallel_speedup_2_over_1"] = parallel[1] / parallel[2]
     (args.out / "benchmark.json").write_text(json.dumps(report, indent=2))
@@ -219,7 +224,8 @@ def _print(report: dict, heights: list[float]) -> None:
     print(f"program seconds: {report['program_seconds']}  failed CLs: {report['failed_cls']}  "
           f"conservation: {report['conservation']}")
     print(f"peak RSS: {report['peak_rss_mb']:.0f} MB  parallel seconds by workers: {report['parallel_seconds']}"
-          + (f"  speedup 2/1: {report['parallel_speedup_2_over_1']:.2f}" if "parallel_speedup_2_over_1" in report else ""))
+          + (f"  speedup 2/1: {report['parallel_speedup_2_over_1']:.2f}" if "parallel_speedup_2_over_1" in report else "")
+          + (f"  worker peak RSS MB by workers: {report['worker_peak_rss_mb']}" if report["worker_peak_rss_mb"] else ""))
 
 
 if __name__ == "__main__":

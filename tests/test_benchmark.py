@@ -20,6 +20,8 @@ def test_benchmark_tiny_runs_and_reports(tmp_path):
         # every operation gets baseline CLs, the windows run on through links in the air
         assert row["baseline_median_ms"] > 0 and row["sum_ratio"] > 0
     assert report["parallel_seconds"][1] > 0
+    # a worker holds the kernel and the cells: more than an empty Python process, less than the machine
+    assert 100 < report["worker_peak_rss_mb"][1] < 24 * 1024
 
 
 @pytest.mark.slow

@@ -225,6 +225,12 @@ def _children_ignore_ctrl_c() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
+def _peak_rss_mb() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
+
+
 # -- the driver ---------------------------------------------------------------------------------------
 
 
@@ -349,6 +355,12 @@ class ParallelBRepEngine:
     @property
     def cells(self) -> list[Cell]:
         return self._gather()
+
+    def workers_peak_rss_mb(self) -> dict[str, float]:
+        """The peak resident memory (MB) of each worker process so far, by worker address."""
+        if self._client is None:
+            return {}
+        return self._client.run(_peak_rss_mb)
 
     def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
         self.start(stock)
