@@ -254,6 +254,10 @@ class ParallelBRepEngine:
     _parts: list[list[int]] = field(default_factory=list, init=False, repr=False)
     _next: int = field(default=0, init=False, repr=False)  # the first CL the state does not include
 
+    def __post_init__(self) -> None:
+        if self.batch < 1 or self.ahead < 1:
+            raise ValueError(f"batch and ahead must be at least 1 (got {self.batch} and {self.ahead})")
+
     def __enter__(self) -> ParallelBRepEngine:
         self.open()
         return self
