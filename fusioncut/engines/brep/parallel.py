@@ -290,7 +290,7 @@ class ParallelBRepEngine:
 
         # Dask starts its worker processes with MALLOC_TRIM_THRESHOLD_=65536, so that glibc hands
         # freed memory back to the system at once; the kernel allocates and frees many small blocks
-        # per Boolean, and with it a worker ran the quick benchmark's CLs 5-9% slower
+        # per Boolean, and with it the quick benchmark ran 4-9% slower (measured in one process)
         keep_malloc = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
         with _children_ignore_ctrl_c(), dask.config.set(keep_malloc):
             self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
