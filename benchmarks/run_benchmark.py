@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import statistics
 import sys
 import time
@@ -43,6 +42,7 @@ from titan_program import FULL, QUICK, STOCK_MAX, STOCK_MIN, ProgramSize, titan_
 from fusioncut.engines.base import EngineOptions  # noqa: E402
 from fusioncut.engines.brep.engine import BRepEngine, cl_sequence  # noqa: E402
 from fusioncut.engines.brep.export import whole_ipw  # noqa: E402
+from fusioncut.engines.brep.parallel import ParallelBRepEngine, peak_rss_mb  # noqa: E402
 from fusioncut.io.gcode import read_gcode  # noqa: E402
 from fusioncut.model import BoxStock, CLStatus  # noqa: E402
 
@@ -51,10 +51,6 @@ SEGMENT = dict(max_segment_length=2.0, chord_tolerance=0.01)
 # ours and the parallel runs: the engine's defaults (20 mm cells); --whole: ours in one piece
 OURS = dict(SEGMENT)
 WHOLE = dict(SEGMENT, cell_size=None)
-
-
-def rss_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def stats(times: list[float]) -> dict:
@@ -138,8 +134,6 @@ def run_baseline(toolpath, snapshots: dict, n: int, slice_height: float) -> dict
 
 def run_parallel(toolpath, stock, workers: int) -> tuple[float, float]:
     """(seconds, the largest peak RSS of a worker process in MB) of the program on Dask workers."""
-    from fusioncut.engines.brep.parallel import ParallelBRepEngine
-
     with ParallelBRepEngine(EngineOptions(**OURS), workers=workers) as engine:
         t0 = time.perf_counter()
         for _ in engine.run(toolpath, stock):
@@ -179,7 +173,7 @@ def main(argv: list[str] | None = None) -> dict:
     parallel = {w: seconds for w, (seconds, _) in runs.items()}
     report = {"size": "tiny" if args.tiny else "quick" if args.quick else "full", "whole": args.whole,
               "program": str(program), "slice_heights_mm": heights, "baseline_cls_per_op": n_base,
-              "peak_rss_mb": rss_mb(), "wall_s": time.perf_counter() - t_start, "operations": {}}
+              "peak_rss_mb": peak_rss_mb(), "wall_s": time.perf_counter() - t_start, "operations": {}}
     first = ours[heights[0]]
     for op, data in first["ops"].items():
         row = {"cls": data["cls"], "seconds_1": data["seconds"], "ms_per_cl": 1e3 * data["seconds"] / data["cls"]}

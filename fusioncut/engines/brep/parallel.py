@@ -225,7 +225,8 @@ def _children_ignore_ctrl_c() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def _peak_rss_mb() -> float:
+def peak_rss_mb() -> float:
+    """The peak resident memory (MB) of this process so far."""
     import resource
 
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
@@ -364,7 +365,7 @@ class ParallelBRepEngine:
         """The peak resident memory (MB) of each worker process so far, by worker address."""
         if self._client is None:
             return {}
-        return self._client.run(_peak_rss_mb)
+        return self._client.run(peak_rss_mb)
 
     def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
         self.start(stock)
