@@ -11,7 +11,8 @@ Formats (:func:`read_tool_library` dispatches on the suffix):
   from the axis, ``SIG`` point angle in degrees, ``tip-diameter``, ``HAND`` right-hand cutting) and
   ``post-process.number`` (the T number). Entries of type "holder" are holders and are skipped.
 * **Fusion** ``.tools`` - a zip archive holding that JSON (``tools.json``); errors name the archive
-  and the member.
+  and the member. The member is inflated in chunks up to :data:`fusioncut.io.archive.MAX_MEMBER_BYTES`
+  (64 MiB), whatever its header says (:func:`fusioncut.io.archive.read_member`).
 * **LinuxCNC** ``.tbl`` - lines ``T<n> P<pocket> [X..W offsets] D<diameter> [I J Q lathe data]
   ;comment``. The table carries neither units nor shapes: lengths are read in ``tbl_units``
   (millimetres unless told), every tool is a flat end mill unless its comment names another shape
@@ -43,6 +44,7 @@ from pydantic import AllowInfNan, BaseModel, ConfigDict, Field, Strict, Validati
 
 from fusioncut.errors import InputError, SourceLocation, ToolDefinitionError
 from fusioncut.io.apt import ASSUMED_FLUTE_LENGTH_DIAMETERS, INCH, make_tool, read_source_text
+from fusioncut.io.archive import read_member
 from fusioncut.model.stock import BoxStock
 from fusioncut.model.tools import (
     AptCutter,
@@ -59,7 +61,6 @@ from fusioncut.model.tools import (
 __all__ = ["ToolLibrary", "CamoticsProject", "fusion_tool", "read_tool_library", "read_camotics_project"]
 
 Num = Annotated[float, Strict(), AllowInfNan(False)]
-_MAX_ARCHIVE_MEMBER = 64 * 1024 * 1024  # a tool library is kilobytes; refuse zip bombs
 
 
 class ToolLibrary(dict[int, MillingTool]):
@@ -350,10 +351,7 @@ def _read_tools_archive(path: Path) -> ToolLibrary:
             if not names:
                 raise InputError("the .tools archive holds no JSON tool library", SourceLocation(file))
             member = next((n for n in names if n.rsplit("/", 1)[-1].lower() == "tools.json"), names[0])
-            info = zf.getinfo(member)
-            if info.file_size > _MAX_ARCHIVE_MEMBER:
-                raise InputError(f"{member} is implausibly large for a tool library", SourceLocation(file))
-            data = zf.read(member)
+            data = read_member(zf, member, file)
     except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, NotImplementedError) as e:
         raise InputError(f"not a Fusion .tools archive (zip): {e}", SourceLocation(file)) from e
     except OSError as e:
