@@ -10,9 +10,11 @@ Every cutting-part geometry is an APT / ISO 3592 7-parameter cutter ``(d, r, e, 
 line above the horizontal, ``beta`` the angle of the side line from the vertical (positive: wider at
 the top), ``h`` the height of the cutting part. ``d`` is the diameter where the side line meets the
 corner (``2*(e + r*cos(beta))``); it is checked against the other parameters. The named families
-(flat, ball, bull-nose, tapered, chamfer) are special cases, so one profile builder serves all.
-Above the cutting part (the flute length) a cylindrical shank of ``shank_diameter`` runs up to
-``overall_length``: contact there is rubbing, not cutting, and is flagged in the results.
+(flat, ball, bull-nose, tapered, chamfer, drill) are special cases, so one profile builder serves all.
+Above the cutting part (the flute length) the tool does not cut (profile zone ``"shank"``): contact
+there is rubbing and is flagged in the results. A reduced neck (``neck_diameter``, up to
+``shoulder_length`` from the tip) may come first; then a cylindrical shank of ``shank_diameter`` runs
+up to ``overall_length``. Each change of radius is a horizontal step in the profile.
 """
 from __future__ import annotations
 
@@ -109,6 +111,10 @@ class MillingTool:
     ``shank_diameter`` (default: the cutting diameter) and ``overall_length`` (tip to the end of the
     shank, default ``flute_length + 2*diameter``) describe the non-cutting part; ``flutes`` the number
     of teeth; ``helix_angle`` the flute helix angle; ``spindle`` the rotation sense.
+    ``shoulder_length`` (tip to the shoulder, mm, > flute length) ends a non-cutting neck of
+    ``neck_diameter`` (default: the diameter at the top of the flutes) above the flutes; the shank
+    starts there instead of at the flute length. ``source`` says where the definition came from
+    (``file:line``, a library entry) for messages; it takes no part in comparisons.
     """
 
     diameter: float
@@ -120,6 +126,9 @@ class MillingTool:
     overall_length: float | None = None
     number: int | None = None  # the T number in the program, when known
     name: str = ""
+    neck_diameter: float | None = None
+    shoulder_length: float | None = None
+    source: str = field(default="", compare=False, repr=False)
     kind: str = field(default="generic", init=False)
 
     def __post_init__(self) -> None:
@@ -133,6 +142,17 @@ class MillingTool:
             raise ToolDefinitionError(f"tool {self.label}: helix angle must be in [0, 90) degrees")
         if self.overall_length is not None and self.overall_length < self.flute_length:
             raise ToolDefinitionError(f"tool {self.label}: overall length shorter than the flute length")
+        if self.neck_diameter is not None:
+            if not (self.neck_diameter > 0):
+                raise ToolDefinitionError(f"tool {self.label}: neck diameter must be > 0, got {self.neck_diameter}")
+            if self.shoulder_length is None:
+                raise ToolDefinitionError(f"tool {self.label}: a neck diameter needs the shoulder length")
+        if self.shoulder_length is not None:
+            if not (self.shoulder_length > self.flute_length):
+                raise ToolDefinitionError(f"tool {self.label}: shoulder length {self.shoulder_length:g} mm must "
+                                          f"exceed the flute length {self.flute_length:g} mm")
+            if self.overall_length is not None and self.overall_length < self.shoulder_length:
+                raise ToolDefinitionError(f"tool {self.label}: overall length shorter than the shoulder length")
         if not getattr(self, "_skip_apt", False):
             self.apt()  # validates the geometry of the family
 
@@ -152,9 +172,20 @@ class MillingTool:
         return self.cutting_profile()[-1].end[0]
 
     @property
+    def neck_radius(self) -> float | None:
+        """Radius of the neck between the flutes and the shoulder, mm; None without a neck."""
+        if self.shoulder_length is None:
+            return None
+        if self.neck_diameter is not None:
+            return 0.5 * self.neck_diameter
+        return self.cutting_profile()[-1].end[0]
+
+    @property
     def length(self) -> float:
-        """Tip to the end of the modelled shank, mm."""
-        return self.overall_length if self.overall_length is not None else self.flute_length + 2 * self.diameter
+        """Tip to the end of the modelled shank, mm (by default at least to the shoulder)."""
+        if self.overall_length is not None:
+            return self.overall_length
+        return max(self.flute_length + 2 * self.diameter, self.shoulder_length or 0.0)
 
     def apt(self) -> AptParameters:
         raise NotImplementedError
@@ -174,17 +205,24 @@ class MillingTool:
 
     def _build_profile(self) -> ToolProfile:
         segs = list(self.cutting_profile())
-        r_top = segs[-1].end[0]
-        h = self.flute_length
+        r, z = segs[-1].end[0], self.flute_length
         top = self.length
+        zone: Literal["flute", "shank"] = "flute"
+        rn = self.neck_radius
+        if rn is not None and self.shoulder_length is not None:
+            # the neck: a cylinder of its own radius from the flutes up to the shoulder, not cutting
+            if abs(rn - r) > _EPS:
+                segs.append(ProfileLine((r, z), (rn, z), "shank"))
+            segs.append(ProfileLine((rn, z), (rn, self.shoulder_length), "shank"))
+            r, z, zone = rn, self.shoulder_length, "shank"
         rs = self.shank_radius
-        if top > h + _EPS:
-            if abs(rs - r_top) > _EPS:
-                segs.append(ProfileLine((r_top, h), (rs, h), "shank"))
-            segs.append(ProfileLine((rs, h), (rs, top), "shank"))
+        if top > z + _EPS:
+            if abs(rs - r) > _EPS:
+                segs.append(ProfileLine((r, z), (rs, z), "shank"))
+            segs.append(ProfileLine((rs, z), (rs, top), "shank"))
             segs.append(ProfileLine((rs, top), (0.0, top), "shank"))
         else:
-            segs.append(ProfileLine((r_top, h), (0.0, h), "flute"))
+            segs.append(ProfileLine((r, z), (0.0, z), zone))
         return ToolProfile(tuple(segs))
 
     @property
@@ -392,7 +430,36 @@ class ChamferMill(MillingTool):
         MillingTool.__post_init__(self)
 
 
+@dataclass(frozen=True)
+class Drill(MillingTool):
+    """A twist drill: a pointed cone of ``point_angle`` (degrees, the *included* angle of the point,
+    118 typical) from the tip up to ``diameter``, cylindrical above that up to the flute length.
+
+    In APT terms the bottom line rises at ``alpha = 90 - point_angle/2`` above the horizontal from
+    the axis to the corner at radius ``d/2``, height ``(d/2) / tan(point_angle/2)`` (the cone height),
+    the same cutter as a pointed :class:`ChamferMill` of half-angle ``point_angle/2``.
+    """
+
+    point_angle: float = 118.0
+    kind: str = field(default="drill", init=False)
+
+    def apt(self) -> AptParameters:
+        if not (0 < self.point_angle < 180):
+            raise ToolDefinitionError(f"tool {self.label}: drill point angle must be in (0, 180) degrees, "
+                                      f"got {self.point_angle:g}")
+        if self.cone_height > self.flute_length + _EPS:
+            raise ToolDefinitionError(f"tool {self.label}: drill point ({self.cone_height:.4g} mm) longer than "
+                                      "the flutes")
+        alpha = 90.0 - self.point_angle / 2
+        return AptParameters(self.diameter, 0.0, self.radius, self.cone_height, alpha, 0.0, self.flute_length)
+
+    @property
+    def cone_height(self) -> float:
+        """Height of the point above the tip, mm: ``r / tan(point_angle / 2)``."""
+        return self.radius / math.tan(math.radians(self.point_angle / 2))
+
+
 TOOL_KINDS: dict[str, type[MillingTool]] = {
     cls.kind: cls  # type: ignore[misc]
-    for cls in (FlatEndMill, BallEndMill, BullNoseEndMill, TaperedEndMill, ChamferMill, AptCutter)
+    for cls in (FlatEndMill, BallEndMill, BullNoseEndMill, TaperedEndMill, ChamferMill, Drill, AptCutter)
 }
