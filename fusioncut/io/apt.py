@@ -22,12 +22,17 @@ that would move the tool in ways we do not evaluate are refused, see below):
   "5-axis not supported yet" naming ``file:line``. How many axes were read is reported in the
   warnings (the model has no per-move tool axis yet).
 * ``MOVARC/cx, cy, cz, i, j, k, r, ANGLE, a`` followed by the ``GOTO`` of the arc's end (Fusion; also
-  the keyword form ``MOVARC/CENTER, cx, cy, cz, AXIS, i, j, k, RADIUS, r[, ANGLE, a]``)
-  and NX ``CIRCLE/cx, cy, cz, i, j, k, r[, tolerance, ...]`` followed by its ``GOTO``. (i, j, k) is
-  the rotation axis: the arc turns counter-clockwise about it (right-hand rule) by ``a`` degrees
-  (Autodesk's post negates the plane normal for clockwise arcs; NX writes the axis the same way).
-  Revisions of the Autodesk post before 2021 wrote the plane normal for both senses; when the end
-  point only fits the stated angle in the opposite sense, that sense is used and a warning says so.
+  the keyword form ``MOVARC/CENTER, cx, cy, cz, AXIS, i, j, k, RADIUS, r[, ANGLE, a]``): the arc
+  turns counter-clockwise about (i, j, k) (right-hand rule) by ``a`` degrees (Autodesk's post negates
+  the plane normal for clockwise arcs). Revisions of the Autodesk post before 2021 wrote the plane
+  normal for both senses; when the end point only fits the stated angle in the opposite sense, that
+  sense is used and a warning says so.
+* NX ``CIRCLE/cx, cy, cz, i, j, k, r[, t, f, d, e][, TIMES, n]`` followed by its ``GOTO``: NX states
+  the axis for *clockwise* motion, so the arc turns clockwise about (i, j, k); ``TIMES, n`` adds n
+  full turns (see :mod:`fusioncut.io.apt_arcs`). The convention belongs to the record, not the file:
+  Fusion's post never writes ``CIRCLE``. The file is recognised as an NX CLSF by NX's own records
+  (``TOOL PATH``, ``TLDATA``, ``MSYS``, ``END-OF-PATH``, ``PAINT`` at the start of a line); a ``CIRCLE``
+  in a file without any of them is read the NX way all the same and a warning says so.
   Helices (end off the arc plane) are kept; the axis must be +-x, +-y or +-z.
 * ``CUTTER/d[, r[, e, f, alpha[, beta, h]]]`` and NX ``TLDATA/MILL, d, r, l, beta, alpha[, e, f
   [, r2, e2, f2]]`` - see :func:`cutter_from_parameters` for how the parameters become a tool.
@@ -44,7 +49,8 @@ that would move the tool in ways we do not evaluate are refused, see below):
   next ``CUTTER``/``LOADTL`` (the post writes the operation comment there).
 * ``FINI`` ends the program; later text is ignored.
 
-Refused with an :class:`InputError`: APT part-program source (``name=GEOM/...`` definitions, ``GOFWD``,
+Refused with an :class:`InputError`: NX ``NURBS`` (and ``KNOT``) spline motion, which is not
+evaluated (a program that lost it would cut a different part), APT part-program source (``name=GEOM/...`` definitions, ``GOFWD``,
 ``GOLFT``, ``INDIRV``...), CL transformations (``ORIGIN``, ``TRANS``, ``COPY``, ``TRACUT``, ``REFSYS``),
 ``RETRCT``, ``MODE/TURN``, and any malformed record. Zero-length motions are dropped. The first
 motion of a program has no known start: it only sets the position (a warning is given when it is a feed).
@@ -58,7 +64,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from fusioncut.errors import FusionCutError, InputError, SourceLocation, ToolDefinitionError
-from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move, Point, Toolpath
+from fusioncut.io.apt_arcs import MAX_EXTRA_TURNS, nx_circle_axis, nx_marker_line, solve_arc
+from fusioncut.model.moves import ArcMove, LinearMove, Move, Point, Toolpath
 from fusioncut.model.tools import (
     AptCutter,
     AptParameters,
@@ -117,84 +124,6 @@ def check_tool_axis(axis: tuple[float, float, float], where: SourceLocation) -> 
         raise InputError(
             f"5-axis not supported yet: tool axis ({u[0]:.6g}, {u[1]:.6g}, {u[2]:.6g}) is not (0, 0, 1)", where
         )
-
-
-@dataclass(frozen=True)
-class ArcSolution:
-    """How a centre/axis arc maps onto :class:`ArcMove` (centre already at the start's height)."""
-
-    center: Point
-    plane: ArcPlane
-    clockwise: bool
-    turns: int
-    sense_from_end_point: bool  # True when the stated axis sense contradicted the end point
-
-
-def solve_arc(
-    start: Point,
-    end: Point,
-    center: Point,
-    axis: tuple[float, float, float],
-    where: SourceLocation,
-    *,
-    radius: float | None = None,
-    sweep_deg: float | None = None,
-) -> ArcSolution:
-    """Turn an arc given by centre, rotation axis (counter-clockwise about it), optional radius and
-    optional swept angle (degrees, > 0) into the RS274-style description of :class:`ArcMove`.
-
-    Checks that the axis is a coordinate axis, that start and end lie on one circle about the centre
-    (within max(0.01 mm, 0.2 % of r), which absorbs the rounding of 4-decimal posts) and that the
-    stated angle fits the points. Raises :class:`InputError` at ``where`` otherwise.
-    """
-    n_len = math.sqrt(sum(c * c for c in axis))
-    if n_len < 1e-9:
-        raise InputError(f"arc axis {axis} has zero length", where)
-    u = [c / n_len for c in axis]
-    k = max(range(3), key=lambda i: abs(u[i]))
-    if any(abs(u[i]) > _AXIS_TOL for i in range(3) if i != k):
-        raise InputError(
-            f"arc about axis ({u[0]:.6g}, {u[1]:.6g}, {u[2]:.6g}) is not in the XY, ZX or YZ plane; "
-            "not supported",
-            where,
-        )
-    plane = {2: ArcPlane.XY, 1: ArcPlane.ZX, 0: ArcPlane.YZ}[k]
-    clockwise = u[k] < 0
-    a, b, n = plane.axes
-    c = list(center)
-    c[n] = start[n]
-    centre: Point = (c[0], c[1], c[2])
-    r0 = math.hypot(start[a] - c[a], start[b] - c[b])
-    r1 = math.hypot(end[a] - c[a], end[b] - c[b])
-    if r0 < 1e-6:
-        raise InputError("arc start lies on the arc centre (zero radius)", where)
-    tol_r = max(0.01, 0.002 * max(r0, r1))
-    if abs(r1 - r0) > tol_r:
-        raise InputError(
-            f"arc end point is not on the circle: start radius {r0:.6g} mm, end radius {r1:.6g} mm", where
-        )
-    if radius is not None and abs(radius - r0) > tol_r:
-        raise InputError(f"stated arc radius {radius:.6g} mm disagrees with the start point ({r0:.6g} mm)", where)
-
-    def base_sweep(cw: bool) -> float:
-        arc = ArcMove(start=start, end=end, center=centre, plane=plane, clockwise=cw)
-        return abs(math.degrees(arc.sweep))
-
-    if sweep_deg is None:
-        return ArcSolution(centre, plane, clockwise, 0, False)
-    if not (sweep_deg > 0):
-        raise InputError(f"arc sweep must be > 0 degrees, got {sweep_deg:.6g}", where)
-    tol_a = max(0.1, math.degrees(tol_r / r0))
-    for cw, flipped in ((clockwise, False), (not clockwise, True)):
-        base = base_sweep(cw)
-        turns = round((sweep_deg - base) / 360.0)
-        if turns >= 0 and abs(base + 360.0 * turns - sweep_deg) <= tol_a:
-            return ArcSolution(centre, plane, cw, turns, flipped)
-    raise InputError(
-        f"arc end point does not lie {sweep_deg:.6g} degrees round from the start "
-        f"(the points give {base_sweep(clockwise):.6g} degrees about the stated axis)",
-        where,
-    )
 
 
 def _same_geometry(a: MillingTool, b: MillingTool) -> bool:
@@ -414,6 +343,7 @@ class _PendingArc:
     axis: tuple[float, float, float]
     radius: float | None
     sweep_deg: float | None
+    extra_turns: int = 0  # NX ``TIMES, n``
 
 
 @dataclass
@@ -464,6 +394,7 @@ class _AptReader:
         self._tokens = 0
         self._unknown_tool_warned: set[int | None] = set()
         self._tool_cache: dict[tuple, int] = {}
+        self.nx_marker: int | None = None  # line of the first NX-only record (see apt_arcs.nx_marker_line)
 
     # -- small utilities ---------------------------------------------------------------------------
     def where(self, rec: _Record) -> SourceLocation:
@@ -508,7 +439,9 @@ class _AptReader:
             "LOADTL": self.on_loadtl, "LOAD": self.on_load, "SELECT": self.on_load, "SPINDL": self.on_spindl,
             "CYCLE": self.on_cycle, "TOOL PATH": self.on_tool_path, "END-OF-PATH": self.on_end_of_path,
             "PPRINT": self.on_pprint, "MODE": self.on_mode, "CUTCOM": self.on_cutcom, "INSERT": self.on_insert,
+            "NURBS": self.on_nurbs, "KNOT": self.on_nurbs,
         }
+        self.nx_marker = nx_marker_line(text)
         for rec in _records(text):
             if "=" in rec.major or "(" in rec.major:
                 raise InputError(
@@ -704,19 +637,54 @@ class _AptReader:
         self.start_arc(rec, center, axis, radius, sweep)
 
     def on_circle(self, rec: _Record) -> None:
+        """NX ``CIRCLE/x, y, z, i, j, k, r[, t, f, d, e][, TIMES, n]``: the axis assumes clockwise motion."""
         args = self.fields(rec)
         if len(args) < 7:
             raise InputError(f"CIRCLE needs cx, cy, cz, i, j, k, r; got {len(args)} values", self.where(rec))
         v = self.nums(rec, args[:7], "an arc parameter")
-        self.start_arc(rec, (v[0], v[1], v[2]), (v[3], v[4], v[5]), v[6], None)
+        extra_turns = 0
+        rest = [a.upper() for a in args[7:]]
+        i = 0
+        while i < len(rest):
+            if rest[i] == "TIMES":
+                if i + 1 >= len(rest):
+                    raise InputError("CIRCLE: TIMES needs the number of full turns", self.where(rec))
+                n = self.num(rec, rest[i + 1], "the number of turns")
+                if n != int(n) or not 1 <= n <= MAX_EXTRA_TURNS:
+                    raise InputError(
+                        f"CIRCLE: TIMES must be a whole number from 1 to {MAX_EXTRA_TURNS}, got {rest[i + 1]!r}",
+                        self.where(rec),
+                    )
+                extra_turns = int(n)
+                i += 2
+            elif self.is_number(rest[i]):  # tolerance, its ratio, tool diameter and corner radius
+                self.num(rec, rest[i], "a CIRCLE parameter")
+                i += 1
+            else:
+                raise InputError(f"CIRCLE: unexpected {args[7 + i]!r}", self.where(rec))
+        if self.nx_marker is None:
+            self.warn_once(
+                "circle-dialect",
+                f"{self.where(rec)}: CIRCLE read as Siemens NX writes it (clockwise about the stated axis), "
+                "although the file has none of NX's TOOL PATH, TLDATA, MSYS, END-OF-PATH or PAINT records",
+            )
+        axis = nx_circle_axis((v[3], v[4], v[5]))
+        self.start_arc(rec, (v[0], v[1], v[2]), axis, v[6], None, extra_turns)
+
+    def on_nurbs(self, rec: _Record) -> None:
+        raise InputError(
+            f"{rec.major} record: spline (NURBS) motion is not supported, and the program cannot run without "
+            "it; output the operation as lines and arcs (NX: the operation's Motion Output Type)",
+            self.where(rec),
+        )
 
     def start_arc(self, rec: _Record, center: Point, axis: tuple[float, float, float], radius: float | None,
-                  sweep: float | None) -> None:
-        """Remember an arc statement (program units) until the GOTO of its end point."""
+                  sweep: float | None, extra_turns: int = 0) -> None:
+        """Remember an arc statement (program units, ``axis`` counter-clockwise) until the GOTO of its end."""
         if self.s.cycle is not None:
             raise InputError("arc inside a drilling cycle", self.where(rec))
         c = (self.length(center[0]), self.length(center[1]), self.length(center[2]))
-        self.s.arc = _PendingArc(rec, c, axis, None if radius is None else self.length(radius), sweep)
+        self.s.arc = _PendingArc(rec, c, axis, None if radius is None else self.length(radius), sweep, extra_turns)
 
     def emit_arc(self, end: Point) -> None:
         s = self.s
@@ -734,7 +702,7 @@ class _AptReader:
         move = ArcMove(
             start=s.pos, end=end, feed=self.feed_now(arc.rec), spindle_rpm=s.rpm, tool=self.current_tool(arc.rec),
             operation=s.operation, source=where, center=sol.center, plane=sol.plane, clockwise=sol.clockwise,
-            turns=sol.turns,
+            turns=sol.turns + arc.extra_turns,
         )
         self.moves.append(move)
         s.pos = end

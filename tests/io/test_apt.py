@@ -147,9 +147,11 @@ def test_nx_clsf_dialect(tmp_path):
     ops = [m.operation for m in tp.moves]
     assert ops[0] == "FACE_MILLING" and ops[-1] == "CONTOUR_BALL"
     circle = next(m for m in tp.moves if isinstance(m, ArcMove))
-    assert circle.clockwise and math.isclose(circle.sweep, -math.pi)
-    # clockwise seen from +z: from 6 o'clock through 9 o'clock to 12 o'clock
-    assert circle.point_at(0.5) == pytest.approx((35.0, 5.0, -1.0))
+    # NX states the axis for clockwise motion: clockwise about -z is counter-clockwise seen from +z,
+    # from 6 o'clock through 3 o'clock to 12 o'clock, on from the feed along +x into the one along -x
+    assert not circle.clockwise and math.isclose(circle.sweep, math.pi)
+    assert circle.point_at(0.5) == pytest.approx((45.0, 5.0, -1.0))
+    assert not any("CIRCLE read as" in w for w in tp.warnings)  # the file has NX's own records
     assert isinstance(tp.tools[1], FlatEndMill) and tp.tools[1].name == "D10_FLAT"
     assert isinstance(tp.tools[2], BallEndMill) and tp.tools[2].diameter == 6.0
     assert tp.moves[1].feed == 250.0
