@@ -25,6 +25,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from matplotlib.ticker import MaxNLocator
 from matplotlib.transforms import blended_transform_factory
 
 from fusioncut.io.results import Results
@@ -36,6 +37,7 @@ SUFFIX_FORMATS = {".png": "png", ".svg": "svg"}
 ENTRY_COLOR = "#1a9850"  # green: the tooth enters the material
 EXIT_COLOR = "#d73027"  # red: the tooth leaves it
 ARC_COLOR = "#2c7fb8"
+POLAR_SPAN_MAX_DEG = 180.0  # the polar plot's colour scale of engaged arcs: 0 .. a full slot
 
 
 # --------------------------------------------------------------------------------------------------
@@ -196,24 +198,29 @@ def plot_polar(
         r = sl[rcol].to_numpy()
         h = _slice_height(r)
         r_max = float(r.max()) + h
-        norm = Normalize(float(sl["z_tool_mm"].min()), float(sl["z_tool_mm"].max()) + 1e-12)
+        # colour: the arc's engaged angle in degrees, on a fixed 0-180 scale (a plunge's 360 at the
+        # top); the radius already tells the height, and a fixed scale never degenerates
+        norm = Normalize(0.0, POLAR_SPAN_MAX_DEG, clip=True)
         cmap = colormaps["viridis"]
         for (_, s), ri in zip(sl.iterrows(), r):
             span = float(s["exit_machine_deg"] - s["entry_machine_deg"])
             ax.bar(math.radians(float(s["entry_machine_deg"]) + span / 2), h, width=math.radians(span),
-                   bottom=ri - h / 2, color=cmap(norm(float(s["z_tool_mm"]))), edgecolor="none", alpha=0.9)
+                   bottom=ri - h / 2, color=cmap(norm(span)), edgecolor="none", alpha=0.9)
             # where the tooth really enters/leaves depends on the spindle sense: go through the
             # immersion angles rather than guessing from the counter-clockwise machine bounds
             for phi, color in ((s["entry_deg"], ENTRY_COLOR), (s["exit_deg"], EXIT_COLOR)):
                 a = math.radians(machine_from_immersion(float(phi), feed_angle, spindle))
                 ax.plot([a, a], [ri - h / 2, ri + h / 2], color=color, lw=1.6)
-        cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.7, pad=0.08)
-        cb.set_label("slice height above tool tip (mm)")
+        cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.7, pad=0.1, extend="max")
+        cb.set_ticks(np.arange(0.0, POLAR_SPAN_MAX_DEG + 1, 45.0))
+        cb.set_ticklabels([f"{d:.0f}°" for d in np.arange(0.0, POLAR_SPAN_MAX_DEG + 1, 45.0)])
+        cb.set_label("engaged arc of the slice (°)")
     else:
         _no_data(ax, f"no contact (status: {row['status']})", y=0.3)  # below the feed arrow
 
     r_lim = r_max * 1.18
     ax.set_rlim(0, r_lim)
+    ax.yaxis.set_major_locator(MaxNLocator(4))  # a few radial labels, apart from each other
     fa = math.radians(feed_angle)
     ax.annotate("", xy=(fa, r_lim * 0.98), xytext=(0, 0),
                 arrowprops=dict(arrowstyle="-|>", color="black", lw=1.8, mutation_scale=18), zorder=5)

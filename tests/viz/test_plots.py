@@ -94,7 +94,7 @@ def test_titles_name_cl_and_source(results):
     fig = plot_polar(results, 8)
     assert "CL 8" in fig.get_suptitle() and "job/part.nc:48" in fig.get_suptitle()
     assert "spindle CCW" in fig.get_suptitle()
-    assert "(mm)" in fig.axes[1].get_ylabel()  # colour bar of the slice heights
+    assert "(°)" in fig.axes[1].get_ylabel()  # colour bar of the engaged arcs, in degrees
     fig = plot_program(results)
     assert "(deg)" in fig.axes[0].get_ylabel() and "(mm)" in fig.axes[1].get_ylabel()
     assert fig.axes[1].get_xlabel() == "CL index"
