@@ -32,7 +32,9 @@ that would move the tool in ways we do not evaluate are refused, see below):
   full turns (see :mod:`fusioncut.io.apt_arcs`). The convention belongs to the record, not the file:
   Fusion's post never writes ``CIRCLE``. The file is recognised as an NX CLSF by NX's own records
   (``TOOL PATH``, ``TLDATA``, ``MSYS``, ``END-OF-PATH``, ``PAINT`` at the start of a line); a ``CIRCLE``
-  in a file without any of them is read the NX way all the same and a warning says so.
+  in a file without any of them is read the NX way all the same and a warning says so. When most
+  ``CIRCLE`` arcs that join a feed line tangentially start straight back against it, a warning says
+  the file seems to state its axes the other way round.
   Helices (end off the arc plane) are kept; the axis must be +-x, +-y or +-z.
 * ``CUTTER/d[, r[, e, f, alpha[, beta, h]]]`` and NX ``TLDATA/MILL, d, r, l, beta, alpha[, e, f
   [, r2, e2, f2]]`` - see :func:`cutter_from_parameters` for how the parameters become a tool.
@@ -64,7 +66,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from fusioncut.errors import FusionCutError, InputError, SourceLocation, ToolDefinitionError
-from fusioncut.io.apt_arcs import MAX_EXTRA_TURNS, nx_circle_axis, nx_marker_line, solve_arc
+from fusioncut.io.apt_arcs import MAX_EXTRA_TURNS, TangentCheck, nx_circle_axis, nx_marker_line, solve_arc
 from fusioncut.model.moves import ArcMove, LinearMove, Move, Point, Toolpath
 from fusioncut.model.tools import (
     AptCutter,
@@ -381,6 +383,7 @@ class _State:
     pprints: list[str] = field(default_factory=list)
     axes_read: int = 0
     flipped_arcs: list[SourceLocation] = field(default_factory=list)
+    circle_joints: TangentCheck = field(default_factory=TangentCheck)
 
 
 class _AptReader:
@@ -480,6 +483,9 @@ class _AptReader:
                 f"{self.s.flipped_arcs[0]}: {len(self.s.flipped_arcs)} arc(s) turn against their stated axis; "
                 "their sense was taken from the end point (older Autodesk APT posts write the plane normal)"
             )
+        reversed_circles = self.s.circle_joints.warning()
+        if reversed_circles:
+            self.warnings.append(reversed_circles)
         return Toolpath(tuple(self.moves), dict(self.registry.tools), tuple(self.warnings), self.file)
 
     # -- motion ------------------------------------------------------------------------------------
@@ -704,6 +710,8 @@ class _AptReader:
             operation=s.operation, source=where, center=sol.center, plane=sol.plane, clockwise=sol.clockwise,
             turns=sol.turns + arc.extra_turns,
         )
+        if arc.rec.major == "CIRCLE":
+            s.circle_joints.add(self.moves[-1] if self.moves else None, move)
         self.moves.append(move)
         s.pos = end
         s.pprints.clear()

@@ -21,9 +21,9 @@ import re
 from dataclasses import dataclass
 
 from fusioncut.errors import InputError, SourceLocation
-from fusioncut.model.moves import ArcMove, ArcPlane, Point
+from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move, Point
 
-__all__ = ["ArcSolution", "nx_circle_axis", "nx_marker_line", "solve_arc", "MAX_EXTRA_TURNS"]
+__all__ = ["ArcSolution", "TangentCheck", "nx_circle_axis", "nx_marker_line", "solve_arc", "MAX_EXTRA_TURNS"]
 
 _AXIS_TOL = 1e-6  # tolerance on unit arc-axis components
 # More revolutions than this in one arc record is a broken file, not a helix; refusing it keeps the
@@ -45,6 +45,44 @@ def nx_marker_line(text: str) -> int | None:
 def nx_circle_axis(axis: tuple[float, float, float]) -> tuple[float, float, float]:
     """The right-hand rotation axis of an NX ``CIRCLE`` whose stated axis assumes clockwise motion."""
     return (-axis[0], -axis[1], -axis[2])
+
+
+# A feed line and an arc meet tangentially when their directions at the joint differ by less than this.
+_TANGENT_COS = math.cos(math.radians(1.0))
+
+
+@dataclass
+class TangentCheck:
+    """Counts the ``CIRCLE`` arcs that start in, or exactly against, the direction of the feed line
+    before them. CAM systems join arcs to lines tangentially; an arc that starts straight back along
+    the line reverses the tool on the spot, which real toolpaths do not do. When most tangent joints
+    reverse, the file states its arc axes the other way round from the convention applied."""
+
+    along: int = 0
+    against: int = 0
+    first_against: SourceLocation | None = None
+
+    def add(self, before: Move | None, arc: ArcMove) -> None:
+        if not isinstance(before, LinearMove) or before.is_rapid or before.end != arc.start:
+            return
+        t0, t1 = before.tangent_at(1.0), arc.tangent_at(0.0)
+        dot = t0[0] * t1[0] + t0[1] * t1[1] + t0[2] * t1[2]
+        if dot >= _TANGENT_COS:
+            self.along += 1
+        elif dot <= -_TANGENT_COS:
+            self.against += 1
+            if self.first_against is None:
+                self.first_against = arc.source
+
+    def warning(self) -> str | None:
+        """A warning when the reversed joints are the majority, else ``None``."""
+        if self.against <= self.along:
+            return None
+        return (
+            f"{self.first_against}: {self.against} of {self.along + self.against} CIRCLE arcs that join a feed "
+            "line tangentially start back against it: the file seems to state its arc axes the other way "
+            "round from NX's convention (clockwise about the axis); check the program's arcs"
+        )
 
 
 @dataclass(frozen=True)

@@ -103,7 +103,7 @@ def test_arc_after_a_tangent_line_starts_along_it(tmp_path, dialect, plane, head
     # rounding to 4 decimals turns the directions by at most ~1e-4 rad at r >= 0.5 mm
     assert sum(p * q for p, q in zip(t_line, t_arc)) > math.cos(1e-3)
     assert math.isclose(abs(arc.sweep), math.radians(sweep_deg), abs_tol=1e-3)
-    assert not any("against their stated axis" in w for w in tp.warnings)
+    assert not any("against their stated axis" in w or "start back against" in w for w in tp.warnings)
 
 
 def _rounded_rectangle(dialect: str, ccw: bool, x0: float, y0: float, w: float, h: float, r: float) -> str:
@@ -143,6 +143,17 @@ def test_contour_with_corner_arcs_has_its_closed_form_length(tmp_path, dialect, 
     assert abs(total - exact) < 1e-3, (total, exact)  # a corner read the wrong way round is 270 degrees
     for m0, m1 in zip(tp.moves, tp.moves[1:]):  # the contour turns smoothly everywhere
         assert sum(p * q for p, q in zip(m0.tangent_at(1.0), m1.tangent_at(0.0))) > math.cos(1e-3)
+    assert not any("start back against" in w for w in tp.warnings)
+
+
+def test_circles_that_reverse_at_tangent_lines_are_reported(tmp_path):
+    # the same contour with its CIRCLE axes written by the right-hand rule, as NX does not
+    text = _rounded_rectangle("nx", True, 0.0, 0.0, 60.0, 40.0, 5.0)
+    flipped = text.replace("0.0000,0.0000,-1.0000,5.0000", "0.0000,0.0000,1.0000,5.0000")
+    assert flipped.count("CIRCLE/") == 4 and flipped != text
+    tp = read_apt(_write(tmp_path, flipped))
+    found = [w for w in tp.warnings if "start back against" in w]
+    assert len(found) == 1 and "4 of 4 CIRCLE arcs" in found[0] and ":10:" in found[0]
 
 
 def test_circle_times_adds_full_turns(tmp_path):
