@@ -124,7 +124,9 @@ def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float 
         pieces = chords(m, chord_tolerance) if curved else [m]
         for piece in pieces:
             for step in staircase(piece, ramp_step):
-                out += step.split(max_segment_length)
+                for seg in step.split(max_segment_length):
+                    # a spiral (end radius off the start's) is swept as true circular arcs
+                    out += seg.circular_pieces(chord_tolerance) if isinstance(seg, ArcMove) else [seg]
     return out
 
 

@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass, field, replace
 from enum import Enum
 
-from fusioncut.errors import SourceLocation
+from fusioncut.errors import InputError, SourceLocation
 from fusioncut.model.tools import MillingTool
 
 Point = tuple[float, float, float]
@@ -237,6 +237,72 @@ class ArcMove(Move):
 
     def translated(self, v: Point) -> ArcMove:
         return replace(self, start=_add(self.start, v), end=_add(self.end, v), center=_add(self.center, v))
+
+    @property
+    def is_spiral(self) -> bool:
+        """Whether the end lies off the start's circle by more than :data:`SPIRAL_EPS` (posts round
+        I/J and end points, so real arcs are spirals by a few µm; R-format arcs by far less)."""
+        return abs(self.end_radius - self.radius) > SPIRAL_EPS
+
+    def circular_pieces(self, tolerance: float) -> list[ArcMove]:
+        """This arc as true circular arcs: pieces of the programmed spiral, each recentred on the
+        circle through its start, its middle and its end on the spiral (so start and end radius are
+        equal and the piece ends exactly where the spiral's piece does), with every point of each
+        circle within ``tolerance`` mm of the spiral (checked at eight points a piece, halving until it
+        holds). An arc that is no spiral is returned as it is.
+
+        Invariants: the pieces chain end to start, the first starts at ``start``, the last ends at
+        ``end``, each turns the way this arc turns and spans at most half a turn.
+        """
+        if not self.is_spiral:
+            return [self]
+        n = max(1, math.ceil(abs(self.sweep) / math.pi - 1e-12))
+        for _ in range(_MAX_SPIRAL_HALVINGS):
+            pieces = [_recentred(self.piece(k / n, (k + 1) / n)) for k in range(n)]
+            if all(p is not None and _spiral_gap(self, k / n, (k + 1) / n, p) <= tolerance
+                   for k, p in enumerate(pieces)):
+                return pieces  # type: ignore[return-value]
+            n *= 2
+        raise InputError(f"a spiral arc (radius {self.radius:.6g} -> {self.end_radius:.6g} mm) cannot be "
+                         f"followed within {tolerance:g} mm by circular arcs", self.source)
+
+
+# mm: an arc whose end radius differs from its start radius by more than this is a spiral and is
+# followed by recentred circular pieces (:meth:`ArcMove.circular_pieces`); below it the difference is
+# under the kernel's tolerance and the arc is swept about its programmed centre
+SPIRAL_EPS = 1e-9
+_MAX_SPIRAL_HALVINGS = 24
+
+
+def _recentred(piece: ArcMove) -> ArcMove | None:
+    """``piece`` about the centre of the circle through its start, middle and end (in its plane; the
+    centre at the start's height along the normal); ``None`` when the three points are collinear or
+    the circle turns the other way."""
+    a, b, n = piece.plane.axes
+    p0, pm, p1 = piece.start, piece.point_at(0.5), piece.end
+    ax, ay = p0[a], p0[b]
+    bx, by = pm[a] - ax, pm[b] - ay
+    cx, cy = p1[a] - ax, p1[b] - ay
+    d = 2.0 * (bx * cy - by * cx)  # > 0: p0 -> pm -> p1 turns counter-clockwise about n
+    if abs(d) < 1e-18 or (d < 0) != piece.clockwise:
+        return None
+    b2, c2 = bx * bx + by * by, cx * cx + cy * cy
+    ux, uy = (cy * b2 - by * c2) / d, (bx * c2 - cx * b2) / d
+    c = [0.0, 0.0, 0.0]
+    c[a], c[b], c[n] = ax + ux, ay + uy, p0[n]
+    return replace(piece, center=(c[0], c[1], c[2]))
+
+
+def _spiral_gap(arc: ArcMove, t0: float, t1: float, piece: ArcMove) -> float:
+    """Largest in-plane distance (mm) between ``arc``'s spiral on [t0, t1] and ``piece``'s circle, at
+    eight points."""
+    a, b, _ = piece.plane.axes
+    rho = piece.radius
+    gap = 0.0
+    for k in range(1, 9):
+        p = arc.point_at(t0 + (t1 - t0) * k / 9)
+        gap = max(gap, abs(math.hypot(p[a] - piece.center[a], p[b] - piece.center[b]) - rho))
+    return gap
 
 
 @dataclass(frozen=True)

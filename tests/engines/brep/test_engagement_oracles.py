@@ -7,7 +7,7 @@ import pytest
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
-from fusioncut.model import (BallEndMill, BoxStock, CLStatus, FlatEndMill, LinearMove, SpindleDirection,
+from fusioncut.model import (ArcMove, BallEndMill, BoxStock, CLStatus, FlatEndMill, LinearMove, SpindleDirection,
                              Toolpath)
 
 MID_PASS_TOL = 0.005  # degrees, the issue's bound mid-pass
@@ -26,16 +26,26 @@ def rot(p, ang_deg, about=(0.0, 0.0)):
     return (about[0] + x * math.cos(a) - y * math.sin(a), about[1] + x * math.sin(a) + y * math.cos(a), p[2])
 
 
-def feed(p0, p1, tool=1):
-    return LinearMove(p0, p1, feed=600.0, tool=tool)
+def feed(p0, p1, tool=1, decimals=None):
+    """A G1 move; with ``decimals``, its coordinates rounded as a post writes them."""
+    return LinearMove(posted(p0, decimals), posted(p1, decimals), feed=600.0, tool=tool)
 
 
+def posted(p, decimals):
+    return p if decimals is None else tuple(round(v, decimals) for v in p)
+
+
+# coordinates as exact floats, and as posts write them (Fusion's metric posts: 3 or 4 decimals)
+POSTED = pytest.mark.parametrize("decimals", [None, 3, 4])
+
+
+@POSTED
 @pytest.mark.parametrize("feed_angle", [0.0, 37.0, 180.0])
-def test_full_slot_is_one_interval_0_180_on_every_engaged_slice(feed_angle):
+def test_full_slot_is_one_interval_0_180_on_every_engaged_slice(feed_angle, decimals):
     tool = FlatEndMill(10, 20)
     stock = BoxStock((-60, -60, -20), (60, 60, 0))
     p0, p1 = rot((-80, 0, -3.0), feed_angle), rot((0, 0, -3.0), feed_angle)
-    _, maps = run([feed(p0, p1)], {1: tool}, stock, max_segment_length=20.0)
+    _, maps = run([feed(p0, p1, decimals=decimals)], {1: tool}, stock, max_segment_length=20.0)
     last = maps[-1]
     assert last.status == CLStatus.ENGAGED
     assert len(last.engaged_slices) == 3  # ap = 3 mm at 1 mm slices
@@ -50,20 +60,26 @@ def test_full_slot_is_one_interval_0_180_on_every_engaged_slice(feed_angle):
     assert last.removed_volume == pytest.approx(10 * 20 * 3, rel=1e-9)
 
 
+@POSTED
 @pytest.mark.parametrize("ae", [1.0, 2.5, 5.0, 8.0])
 @pytest.mark.parametrize("side", ["up", "down"])
 @pytest.mark.parametrize("spindle", [SpindleDirection.CW, SpindleDirection.CCW])
-def test_up_and_down_milling_with_radial_depth(ae, side, spindle):
+def test_up_and_down_milling_with_radial_depth(ae, side, spindle, decimals):
     R = 5.0
     tool = FlatEndMill(2 * R, 20, spindle=spindle)
     # material on +y of a +x feed: up-milling for a CW spindle, down-milling for CCW
     material_on_plus_y = (side == "up") == (spindle == SpindleDirection.CW)
+    y = 1.0 / 3.0
     if material_on_plus_y:
-        stock = BoxStock((-50, R - ae, -20), (50, 40, 0))
+        stock = BoxStock((-50, y + R - ae, -20), (50, 40, 0))
     else:
-        stock = BoxStock((-50, -40, -20), (50, -R + ae, 0))
-    _, maps = run([feed((-70, 0, -4), (0, 0, -4))], {1: tool}, stock, max_segment_length=10.0)
+        stock = BoxStock((-50, -40, -20), (50, y - R + ae, 0))
+    # the feed line off y = 0 by a third of a mm, its ends rounded apart as a post writes them
+    # (a slope of ~1e-6 rad); the closed form takes the radial depth at the rounded end
+    p1 = posted((0, y, -4), decimals)
+    _, maps = run([feed((-70, y + 4e-5, -4), p1, decimals=decimals)], {1: tool}, stock, max_segment_length=10.0)
     last = maps[-1]
+    ae = ae + (p1[1] - y if material_on_plus_y else y - p1[1])
     phi = math.degrees(math.acos(1 - ae / R))
     expected = (0.0, phi) if side == "up" else (180.0 - phi, 180.0)
     assert len(last.engaged_slices) == 4
@@ -74,12 +90,14 @@ def test_up_and_down_milling_with_radial_depth(ae, side, spindle):
     assert last.ae == pytest.approx(ae, abs=1e-6)
 
 
-def test_ball_end_slot_follows_the_sphere_per_slice():
+@POSTED
+def test_ball_end_slot_follows_the_sphere_per_slice(decimals):
     R, depth = 5.0, 3.0
     tool = BallEndMill(2 * R, 20)
     stock = BoxStock((-60, -20, -20), (60, 20, 0))
-    _, maps = run([feed((-80, 0, -depth), (0, 0, -depth))], {1: tool}, stock, max_segment_length=20.0,
-                  slice_height=0.2)
+    y = 2.0 / 3.0  # off the axis so that a post's rounding moves the ends apart
+    moves = [feed((-80, y + 4e-5, -depth), (0, y, -depth), decimals=decimals)]
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0, slice_height=0.2)
     last = maps[-1]
     engaged = last.engaged_slices
     assert len(engaged) == round(depth / 0.2)
@@ -165,3 +183,41 @@ def test_a_wall_only_grazed_is_no_engagement(cell_size, layers):
     assert last.ap == pytest.approx(3.0, abs=1e-9)
     assert_intervals(last, [(0.0, 180.0)], MID_PASS_TOL)
     assert last.contact_area == pytest.approx(math.pi * 5 * 3, rel=1e-6)
+
+
+def posted_arc(p0, end, center, clockwise, decimals, off=0.0):
+    """A G2/G3 move as a post writes it: end point and I/J (the centre relative to the start) rounded
+    to ``decimals``, the end pushed ``off`` mm off the circle, so start and end radius differ."""
+    c = (center[0] - p0[0], center[1] - p0[1])
+    r = math.hypot(end[0] - center[0], end[1] - center[1])
+    e = (center[0] + (end[0] - center[0]) * (r + off) / r, center[1] + (end[1] - center[1]) * (r + off) / r, end[2])
+    e, ij = posted(e, decimals), posted(c, decimals)
+    return ArcMove(p0, e, feed=600.0, tool=1, center=(p0[0] + ij[0], p0[1] + ij[1], p0[2]), clockwise=clockwise)
+
+
+@pytest.mark.parametrize("decimals, off", [(None, 0.0), (4, 0.0), (3, 0.0), (4, 0.002), (4, -0.002)])
+@pytest.mark.parametrize("clockwise", [True, False])
+def test_slot_along_rounded_arcs_is_one_interval_0_180(decimals, off, clockwise):
+    """A D6 slot 2 mm deep along arcs of radius 17.3 mm, as posts write them: I/J and end points
+    rounded, and (the issue's case) ends 2 µm off the circle. The controller follows a spiral; every
+    CL on it is a full slot, [0, 180] on both slices, within 0.05° (the spiral's feed direction turns
+    a little against the circle's tangent; within 0.005° on exact arcs)."""
+    R, depth, rho = 3.0, 2.0, 17.3
+    stock = BoxStock((-40, -40, -10), (40, 40, 0))
+    sgn = -1.0 if clockwise else 1.0
+    at = lambda deg: (rho * math.cos(math.radians(deg)), rho * math.sin(math.radians(deg)), -depth)  # noqa: E731
+    start = posted(at(0.0), decimals)  # entered from outside the stock along the tangent
+    moves = [feed((start[0], -45.0 * sgn, -depth), start, decimals=decimals)]
+    for k, deg in enumerate((37.0, 101.0, 163.0)):
+        moves.append(posted_arc(moves[-1].end, at(sgn * deg), (0.0, 0.0, -depth), clockwise, decimals,
+                                off=off if k % 2 == 0 else -off))
+    eng, maps = run(moves, {1: FlatEndMill(2 * R, 12)}, stock, max_segment_length=2.0)
+    on_arcs = [m for m in maps if abs(math.hypot(m.position[0], m.position[1]) - rho) < 0.01 and m.position[1] * sgn > 0]
+    tol = MID_PASS_TOL if off == 0.0 and decimals is None else 0.05
+    assert len(on_arcs) >= 24  # 163° of 17.3 mm in 2 mm CLs
+    for m in on_arcs:
+        assert m.status == CLStatus.ENGAGED
+        assert len(m.engaged_slices) == 2
+        assert_intervals(m, [(0.0, 180.0)], tol)
+    removed = sum(m.removed_volume for m in maps)
+    assert stock.volume - eng.ipw_volume == pytest.approx(removed, rel=1e-9)
