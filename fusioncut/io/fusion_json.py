@@ -320,8 +320,10 @@ class _JsonReader:
             self.tool = fusion_tool(
                 t.type, where, self.warnings, json_path=f"{path}.tool", diameter=t.diameter * k,
                 flute_length=mm(t.fluteLength), corner_radius=t.cornerRadius * k, tip_diameter=mm(t.tipDiameter),
-                taper_angle=t.taperAngle, point_angle=t.taperAngle if kind in {"spot drill"} else None,
-                number=t.number, spindle=self.spindle, overall_length=mm(t.bodyLength),
+                # a drill's or spot drill's taperAngle is its point's included angle (posts print it as
+                # TAPER=118deg), a chamfer mill's the half-angle from the axis
+                taper_angle=t.taperAngle, point_angle=t.taperAngle if kind in {"spot drill", "drill"} else None,
+                number=t.number, spindle=self.spindle, overall_length=mm(t.bodyLength), source=str(where),
             )
         except ToolDefinitionError as e:
             if not self.skip_unsupported:

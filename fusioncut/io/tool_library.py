@@ -8,8 +8,11 @@ Formats (:func:`read_tool_library` dispatches on the suffix):
   ``geometry`` (``DC`` cutting diameter, ``LCF`` flute length, ``LB`` body length (the stick-out below
   the holder, used as the tool's ``overall_length``; ``OAL`` when it is missing), ``OAL`` overall
   length, ``NOF`` flutes, ``RE`` corner radius, ``SFDM`` shank diameter, ``TA`` taper angle in degrees
-  from the axis, ``SIG`` point angle in degrees, ``tip-diameter``, ``HAND`` right-hand cutting) and
-  ``post-process.number`` (the T number). Entries of type "holder" are holders and are skipped.
+  from the axis, ``SIG`` point angle in degrees (the included angle), ``tip-diameter``, ``HAND``
+  right-hand cutting, ``shoulder-length`` tip to the shoulder and ``shoulder-diameter`` the neck's
+  diameter below it: a reduced neck) and ``post-process.number`` (the T number). Entries of type
+  "holder" are holders and are skipped. Drills become :class:`~fusioncut.model.tools.Drill` of
+  their point angle (118 degrees when the entry gives none, with a warning).
 * **Fusion** ``.tools`` - a zip archive holding that JSON (``tools.json``); errors name the archive
   and the member. The member is inflated in chunks up to :data:`fusioncut.io.archive.MAX_MEMBER_BYTES`
   (64 MiB), whatever its header says (:func:`fusioncut.io.archive.read_member`).
@@ -25,7 +28,7 @@ Formats (:func:`read_tool_library` dispatches on the suffix):
   and ``files`` (programs, relative to the project). CAMotics' ``length`` is the cutting length and a
   conical tool is a cone over its whole length (half-angle ``atan(d / 2 / length)``).
 
-Tools that cannot be modelled (drills, taps, thread/slot/lollipop/dovetail/form mills, ...) are left
+Tools that cannot be modelled (centre drills, taps, thread/slot/lollipop/dovetail/form mills, ...) are left
 out of the returned :class:`ToolLibrary` and kept, with their :class:`ToolDefinitionError`, in
 ``ToolLibrary.refused``; :meth:`ToolLibrary.require` raises that error when a program asks for such a
 tool, so a library holding one drill can still serve the milling operations.
@@ -52,6 +55,7 @@ from fusioncut.model.tools import (
     BallEndMill,
     BullNoseEndMill,
     ChamferMill,
+    Drill,
     FlatEndMill,
     MillingTool,
     SpindleDirection,
@@ -96,8 +100,10 @@ _BULL = {"bull nose end mill", "bullnose mill", "bull nose mill", "bullnose end 
 _CHAMFER = {"chamfer mill"}
 _SPOT = {"spot drill"}
 _TAPERED = {"tapered mill"}
+_DRILL = {"drill"}
+DEFAULT_POINT_ANGLE = 118.0  # degrees, a standard twist drill's point (included angle)
 _REFUSED = {
-    "drill": "a drill", "center drill": "a centre drill", "block drill": "a block drill",
+    "center drill": "a centre drill", "block drill": "a block drill",
     "counterbore": "a counterbore", "counter bore": "a counterbore", "countersink": "a countersink",
     "counter sink": "a countersink", "right tap": "a tap", "left tap": "a tap", "tap right hand": "a tap",
     "tap left hand": "a tap", "tap": "a tap", "reamer": "a reamer", "boring bar": "a boring bar",
@@ -126,13 +132,19 @@ def fusion_tool(
     name: str = "",
     spindle: SpindleDirection = SpindleDirection.CW,
     tapered_type: str | None = None,
+    shoulder_length: float | None = None,
+    neck_diameter: float | None = None,
+    source: str = "",
 ) -> MillingTool:
     """A Fusion tool (from a library or the JSON post) as a model tool. Lengths in mm, angles in
     degrees; ``taper_angle`` is measured from the axis, ``point_angle`` is the included angle.
 
     Face mills become flat end mills of their cutting diameter (a lead angle is ignored, with a
     warning); spot drills become pointed chamfer mills of half their point angle; a tapered mill with
-    a corner radius is a tapered ball (an :class:`AptCutter`). Unmodellable types raise
+    a corner radius is a tapered ball (an :class:`AptCutter`); drills are :class:`Drill` of
+    ``point_angle`` (118 assumed, with a warning, when it is missing). ``shoulder_length`` above the
+    flute length models a neck of ``neck_diameter`` (default: the cutting diameter) up to it.
+    ``source`` (``file:line`` or library entry) is kept in the tool for messages. Unmodellable types raise
     :class:`ToolDefinitionError` naming the type. Errors and warnings are located at ``where`` and
     start with ``json_path`` when given.
     """
@@ -153,7 +165,8 @@ def fusion_tool(
     if flute_length is None or not (flute_length > 0):
         flute_length = ASSUMED_FLUTE_LENGTH_DIAMETERS * diameter
         note(f"tool {label} has no flute length; assumed {flute_length:.4g} mm")
-    common: dict[str, Any] = {"flute_length": flute_length, "number": number, "name": name, "spindle": spindle}
+    common: dict[str, Any] = {"flute_length": flute_length, "number": number, "name": name, "spindle": spindle,
+                              "source": source}
     if flutes is not None and flutes >= 1:
         common["flutes"] = flutes
     if shank_diameter is not None and shank_diameter > 0:
@@ -166,7 +179,21 @@ def fusion_tool(
     r = corner_radius or 0.0
 
     def build(cls: type[MillingTool], **kw: Any) -> MillingTool:
+        _neck(common, label, shoulder_length, neck_diameter, note)
         return make_tool(cls, where, json_path, **kw, **common)
+
+    if kind in _DRILL:
+        angle = point_angle if point_angle else taper_angle
+        if not angle:
+            angle = DEFAULT_POINT_ANGLE
+            note(f"drill {label} gives no point angle; assumed {angle:g} deg")
+        if not (0 < angle < 180):
+            raise refuse(f"drill {label}: point angle must be in (0, 180) degrees, got {angle:g}")
+        cone = diameter / 2 / math.tan(math.radians(angle / 2))
+        if cone > common["flute_length"] + 1e-9:
+            note(f"drill {label}: point ({cone:.4g} mm) taller than the flute length; flute length set to it")
+            common["flute_length"] = cone
+        return build(Drill, diameter=diameter, point_angle=angle)
 
     if kind in _FLAT or kind in _BALL or kind in _BULL:
         if kind == "face mill" and taper_angle:
@@ -225,6 +252,24 @@ def fusion_tool(
     raise refuse(f"tool {label}: unknown tool type {type_name!r}")
 
 
+def _neck(common: dict[str, Any], label: str, shoulder: float | None, neck: float | None,
+          note: Any) -> None:
+    """Put a neck into the tool's keyword arguments when the shoulder lies above the flutes (Fusion
+    gives a shoulder length equal to the flute length for tools without a neck)."""
+    if shoulder is None or not (shoulder > common["flute_length"] + 1e-9):
+        return
+    top = common.get("overall_length")
+    if top is not None and shoulder > top + 1e-9:
+        note(f"tool {label}: shoulder length {shoulder:g} mm beyond the overall length {top:g} mm; the neck "
+             "is modelled up to the overall length")
+        shoulder = top
+        if not (shoulder > common["flute_length"] + 1e-9):
+            return
+    common["shoulder_length"] = shoulder
+    if neck is not None and neck > 0:
+        common["neck_diameter"] = neck
+
+
 # --------------------------------------------------------------------------------------------------
 # Fusion library JSON
 
@@ -241,6 +286,8 @@ class _Geometry(BaseModel):
     SIG: Num | None = None
     HAND: bool | None = None
     tip_diameter: Num | None = Field(default=None, alias="tip-diameter")
+    shoulder_length: Num | None = Field(default=None, alias="shoulder-length")
+    shoulder_diameter: Num | None = Field(default=None, alias="shoulder-diameter")
 
 
 class _PostProcess(BaseModel):
@@ -331,7 +378,8 @@ def _fusion_library_from_text(text: str, file: str) -> ToolLibrary:
                 overall_length=mm(g.LB) if g.LB else mm(g.OAL), flutes=g.NOF,
                 number=number, name=entry.description,
                 spindle=SpindleDirection.CCW if g.HAND is False else SpindleDirection.CW,
-                tapered_type=entry.tapered_type,
+                tapered_type=entry.tapered_type, shoulder_length=mm(g.shoulder_length),
+                neck_diameter=mm(g.shoulder_diameter), source=f"{file}: {path} {name!r}",
             )
         except ToolDefinitionError as e:
             refused[number] = e

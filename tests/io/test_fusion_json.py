@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from fusioncut.errors import FusionCutError, InputError, ToolDefinitionError
 from fusioncut.io.fusion_json import read_fusion_json
 from fusioncut.model.moves import ArcMove, ArcPlane
-from fusioncut.model.tools import BallEndMill, BullNoseEndMill, ChamferMill, SpindleDirection
+from fusioncut.model.tools import BallEndMill, BullNoseEndMill, ChamferMill, Drill, SpindleDirection
 
 
 def section(tool: dict, *, speed=12000, direction="cw", feed_mode="per min", forward=(0, 0, 1)) -> dict:
@@ -168,12 +168,24 @@ def test_tilted_work_plane_is_refused(tmp_path):
         read_fusion_json(write(tmp_path, doc))
 
 
-def test_unsupported_tool_refused_or_skipped(tmp_path):
+def test_drill_sections_cut_with_a_pointed_drill(tmp_path):
+    """Issue 23 item 7: a drill's taperAngle is its point angle (118), not a chamfer half-angle."""
     doc = program()
     doc["toolpath"][22] = section(DRILL)
+    tp = read_fusion_json(write(tmp_path, doc))
+    drill = tp.tools[9]
+    assert isinstance(drill, Drill) and drill.point_angle == 118 and drill.diameter == 4.2
+    assert drill.cone_height == pytest.approx(2.1 / math.tan(math.radians(59)))
+    plunges = [m for m in tp.moves if m.operation == "Drill1" and not m.is_rapid]
+    assert [m.end for m in plunges] == [(30, 0, -1), (40, 0, -1)] and {m.tool for m in plunges} == {9}
+
+
+def test_unsupported_tool_refused_or_skipped(tmp_path):
+    doc = program()
+    doc["toolpath"][22] = section({**DRILL, "type": "right tap"})
     doc["toolpath"] += [{"p": {"name": "operation-comment", "value": "Finish"}}, section(BALL), {"lf": [50, 0, 20]}]
     path = write(tmp_path, doc)
-    with pytest.raises(ToolDefinitionError, match=r"toolpath\[22\]\.section\.tool: tool drill \(T9\) is a drill"):
+    with pytest.raises(ToolDefinitionError, match=r"toolpath\[22\]\.section\.tool: tool right tap \(T9\) is a tap"):
         read_fusion_json(path)
     tp = read_fusion_json(path, skip_unsupported_tools=True)
     assert not any(m.operation == "Drill1" for m in tp.moves)

@@ -19,6 +19,7 @@ from fusioncut.model.tools import (
     BallEndMill,
     BullNoseEndMill,
     ChamferMill,
+    Drill,
     FlatEndMill,
     SpindleDirection,
     TaperedEndMill,
@@ -88,10 +89,11 @@ def check_library(lib: ToolLibrary) -> None:
     assert v.diameter == pytest.approx(6.35) and v.flute_length == pytest.approx(3.175)
     engraver = lib[12]  # cone taller than the stated flute length: the flutes are stretched to it
     assert engraver.flute_length == pytest.approx(3.175 / math.tan(math.radians(60)))
-    assert set(lib) == {1, 2, 3, 4, 5, 6, 7, 8, 11, 12}
-    assert set(lib.refused) == {9, 10}
-    with pytest.raises(ToolDefinitionError, match=r"data\[8\]: tool .*\(T9\) is a drill"):
-        lib.require(9)
+    drill = lib[9]  # SIG is the point's included angle: a 118 deg point is a cone of half-angle 59 deg
+    assert isinstance(drill, Drill) and drill.point_angle == 118 and drill.diameter == 3
+    assert drill.cone_height == pytest.approx(1.5 / math.tan(math.radians(59)))
+    assert set(lib) == {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12}
+    assert set(lib.refused) == {10}
     with pytest.raises(ToolDefinitionError, match="thread mill"):
         lib.require(10)
     with pytest.raises(ToolDefinitionError, match="T99 is not in the tool library"):
@@ -366,3 +368,59 @@ def test_fuzz_mutated_library_and_project(fuzz_dir, data):
             read(path)
         except FusionCutError as e:
             assert str(path) in str(e)
+
+
+def test_fusion_reduced_neck_is_modelled(tmp_path):
+    """Issue 23 item 7: a 4 mm cutter with a 4 mm neck to 18 mm and a 6 mm shank touches nothing with
+    its shank below 18 mm (it got a 6 mm shank from the flute length, 12 mm, before)."""
+    lib_doc = {"version": 1, "data": [
+        fusion_entry("flat end mill", 1, {"DC": 4, "LCF": 12, "LB": 40, "OAL": 60, "SFDM": 6, "NOF": 3,
+                                          "shoulder-length": 18, "shoulder-diameter": 4}),
+        fusion_entry("ball end mill", 2, {"DC": 0.125, "RE": 0.0625, "LCF": 0.25, "LB": 1.5, "SFDM": 0.125,
+                                          "shoulder-length": 0.875, "shoulder-diameter": 0.115}, unit="inches"),
+        fusion_entry("flat end mill", 3, {"DC": 6, "LCF": 15, "LB": 30, "SFDM": 6, "shoulder-length": 15}),
+        fusion_entry("flat end mill", 4, {"DC": 3, "LCF": 8, "LB": 20, "SFDM": 3, "shoulder-length": 25,
+                                          "shoulder-diameter": 2.8}),
+    ]}
+    p = tmp_path / "necks.json"
+    p.write_text(json.dumps(lib_doc))
+    lib = read_tool_library(p)
+    neck = lib[1].profile()
+    assert neck.radius_at(15.0) == pytest.approx(2.0)  # the neck, not the 6 mm shank
+    assert neck.radius_at(18.5) == pytest.approx(3.0)
+    assert lib[1].shoulder_length == 18 and lib[1].length == 40
+    assert [s.zone for s in neck.segments if min(s.start[1], s.end[1]) >= 12] == ["shank"] * len(
+        [s for s in neck.segments if min(s.start[1], s.end[1]) >= 12])
+    ball = lib[2]  # inch library: 0.115" neck to 0.875"
+    assert ball.neck_diameter == pytest.approx(2.921) and ball.shoulder_length == pytest.approx(22.225)
+    assert ball.profile().radius_at(10.0) == pytest.approx(1.4605)
+    assert lib[3].shoulder_length is None  # a shoulder at the flute length is no neck
+    capped = lib[4]  # shoulder beyond the stick-out: the neck ends with the modelled tool
+    assert capped.shoulder_length == 20 and capped.profile().radius_at(19.0) == pytest.approx(1.4)
+    assert any("data[3]" in w and "shoulder length 25 mm beyond the overall length 20 mm" in w
+               for w in lib.warnings)
+    assert lib[1].source == f"{p}: data[0] 'flat end mill'"
+
+
+def test_fusion_drills_are_pointed_tools(tmp_path):
+    lib_doc = {"version": 1, "data": [
+        fusion_entry("drill", 1, {"DC": 6.8, "LCF": 60, "LB": 70, "SIG": 118}),
+        fusion_entry("drill", 2, {"DC": 0.1875, "LCF": 1.5, "SIG": 135}, unit="inches"),
+        fusion_entry("drill", 3, {"DC": 5, "LCF": 40}),
+        fusion_entry("drill", 4, {"DC": 5, "LCF": 40, "SIG": 190}),
+        fusion_entry("center drill", 5, {"DC": 5, "LCF": 4, "SIG": 60}),
+    ]}
+    p = tmp_path / "drills.json"
+    p.write_text(json.dumps(lib_doc))
+    lib = read_tool_library(p)
+    d118, d135, default = lib[1], lib[2], lib[3]
+    assert isinstance(d118, Drill) and d118.point_angle == 118
+    assert d118.profile().segments[0].end == pytest.approx((3.4, 3.4 / math.tan(math.radians(59))))
+    assert d135.diameter == pytest.approx(4.7625) and d135.cone_height == pytest.approx(
+        4.7625 / 2 / math.tan(math.radians(67.5)))
+    assert default.point_angle == 118
+    assert any("data[2]" in w and "no point angle; assumed 118 deg" in w for w in lib.warnings)
+    with pytest.raises(ToolDefinitionError, match=r"data\[3\]: drill .*point angle must be in \(0, 180\)"):
+        lib.require(4)
+    with pytest.raises(ToolDefinitionError, match=r"data\[4\]: tool .*\(T5\) is a centre drill"):
+        lib.require(5)
