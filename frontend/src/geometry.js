@@ -75,3 +75,41 @@ export function stockBox(stock) {
 }
 
 export const STATUS_COLORS = { engaged: 0xe8590c, air: 0x1c7ed6, rapid: 0x868e96, failed: 0xe03131 };
+
+// Colours of the 3D view's layers; those of the GLB's nodes match fusioncut/viz/scene.py's LAYERS.
+export const LAYER_COLORS = {
+  ipw: 0x9ea3ab, contact_faces: 0xd91414, tool: 0xe6b326, arcs: 0x12b886, entry_lines: 0x1ad940, exit_lines: 0x3373ff,
+};
+
+export function hex(color) {
+  return `#${color.toString(16).padStart(6, "0")}`;
+}
+
+// The box the camera frames: the part, i.e. the stock; without a stock outline, the CLs that are not
+// rapids (a program's retracts and approach moves lie far above and beside the part).
+export function partBox(stock, cls) {
+  const box = stockBox(stock);
+  if (box) return { min: [...box.min], max: [...box.max] };
+  const cutting = { x: [], y: [], z: [] };
+  for (let i = 0; cls && i < cls.x.length; i++) {
+    if (cls.status[i] === "rapid") continue;
+    for (const k of ["x", "y", "z"]) cutting[k].push(cls[k][i]);
+  }
+  const [min, max] = bounds(cutting.x.length ? cutting : cls, null);
+  return { min, max };
+}
+
+// The screen rectangle [x0, y0, x1, y1] that holds the eight corners of `box`, each placed on the
+// screen by `project([x, y, z]) -> [sx, sy]`.
+export function screenBox(box, project) {
+  let [x0, y0, x1, y1] = [Infinity, Infinity, -Infinity, -Infinity];
+  for (const x of [box.min[0], box.max[0]]) {
+    for (const y of [box.min[1], box.max[1]]) {
+      for (const z of [box.min[2], box.max[2]]) {
+        const [sx, sy] = project([x, y, z]);
+        [x0, y0, x1, y1] = [Math.min(x0, sx), Math.min(y0, sy), Math.max(x1, sx), Math.max(y1, sy)];
+      }
+    }
+  }
+  return [x0, y0, x1, y1];
+}

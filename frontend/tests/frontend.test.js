@@ -4,7 +4,7 @@ import { test } from "node:test";
 
 import { SSEParser } from "../src/sse.js";
 import { bytes, duration, percent, progressLabel } from "../src/format.js";
-import { arcPoints, arcSpans, bounds, stockBox, toolShape } from "../src/geometry.js";
+import { arcPoints, arcSpans, bounds, hex, partBox, screenBox, stockBox, toolShape } from "../src/geometry.js";
 
 test("SSE events split over chunks, with CRLF, comments and multi-line data", () => {
   const p = new SSEParser();
@@ -62,4 +62,22 @@ test("a running job that has done every CL is still writing, not at 100 %", () =
   assert.equal(progressLabel(job("running", 5, 10)), "5 / 10 CLs · 50%");
   assert.equal(progressLabel(job("done", 10, 10)), "10 / 10 CLs · 100%");
   assert.equal(progressLabel(job("queued", 0, 10)), "0 / 10 CLs · 0%");
+});
+
+test("the view frames the part: the stock, else the CLs that are not rapids", () => {
+  const cls = { x: [0, 10, 40, -100], y: [0, 5, 20, 0], z: [50, -1, -2, 50], status: ["rapid", "engaged", "air", "rapid"] };
+  assert.deepEqual(partBox({ kind: "box", min: [0, 0, -5], max: [30, 20, 0] }, cls), { min: [0, 0, -5], max: [30, 20, 0] });
+  // no stock outline (a STEP stock): the retract at z 50 and the approach at x -100 are left out
+  assert.deepEqual(partBox(null, cls), { min: [10, 5, -2], max: [40, 20, -1] });
+  // only rapids: all of them, rather than nothing
+  assert.deepEqual(partBox(null, { x: [1, 2], y: [3, 4], z: [5, 6], status: ["rapid", "rapid"] }),
+    { min: [1, 3, 5], max: [2, 4, 6] });
+});
+
+test("the part's screen box holds its eight projected corners", () => {
+  const box = { min: [0, 0, -5], max: [30, 20, 0] };
+  // an oblique projection: x right, y up the screen at half scale, z up
+  const r = screenBox(box, ([x, y, z]) => [x + 0.5 * y, -z - 0.5 * y]);
+  assert.deepEqual(r, [0, -10, 40, 5]);
+  assert.equal(hex(0x09a3ab), "#09a3ab");
 });

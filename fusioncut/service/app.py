@@ -37,6 +37,7 @@ from fusioncut.service.demo import DEMO_FILE, demo_gcode, demo_job
 from fusioncut.service.files import check_name, find_result_file, result_files
 from fusioncut.service.models import (ClDetail, FileInfo, FileList, JobList, JobStatus, Problem, ProgressInfo,
                                       Scene, ServiceInfo, SummaryTable)
+from fusioncut.service.scene_route import CL_QUERY, SCENE_RESPONSES, SceneAtCl, SceneRoutes
 from fusioncut.service.settings import Settings, key_hash
 from fusioncut.service.store import FINAL_STATES, JobRecord
 from fusioncut.service.worker import portable
@@ -443,11 +444,18 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
         """The per-operation summary (summary.csv) as JSON rows."""
         return SummaryTable(rows=_records(results_of(lookup(job_id, who)).summary))
 
-    @app.get("/api/jobs/{job_id}/scene", response_model=Scene, tags=["results"], responses=PROBLEMS)
-    def scene(job_id: str, who: str = Depends(owner)) -> Scene:
-        """Data for the 3D view: stock outline, IPW mesh file (if any), tools, CL points."""
+    scenes = SceneRoutes(service)  # ?cl= and scene.glb: fusioncut/service/scene_route.py
+    scenes.register(app, owner, lookup, PROBLEMS)
+
+    @app.get("/api/jobs/{job_id}/scene", response_model=Scene | SceneAtCl, tags=["results"],
+             responses={**PROBLEMS, **SCENE_RESPONSES})
+    def scene(job_id: str, cl: int | None = CL_QUERY, who: str = Depends(owner)) -> Any:
+        """Data for the 3D view: stock outline, IPW mesh file (if any), tools, CL points; with `?cl=N`
+        the workpiece after CL N (a GLB, replayed on a worker and cached), the tool at N and its contact."""
         rec = lookup(job_id, who)
         res = results_of(rec)
+        if cl is not None:
+            return scenes.at_cl(rec, res, cl)
         stock = res.metadata.get("stock") if isinstance(res.metadata.get("stock"), dict) else None
         if stock is None:
             try:

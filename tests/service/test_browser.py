@@ -1,5 +1,6 @@
 """The front end in a real browser (Debian's Chromium through Python Playwright): submit a job in the
-page, watch its progress reach 100 %, open the results and check that the 3D view draws something.
+page, watch its progress reach 100 %, open the results and check that the 3D view draws something;
+move the CL slider from an early CL to the last and see the workpiece change inside the part.
 
 Skipped when /usr/bin/chromium is missing, unless FUSIONCUT_REQUIRE_BROWSER=1 (CI), which makes a
 missing browser a failure.
@@ -9,8 +10,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
-from service_helpers import KEY_A, TINY_GCODE
+from service_helpers import KEY_A, TINY_GCODE, tiny_submission, tiny_total, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
@@ -45,13 +47,7 @@ def _open(browser, web):
 
 
 def _non_background_fraction(png: bytes) -> float:
-    from io import BytesIO
-
-    from PIL import Image
-
-    import numpy as np
-
-    px = np.asarray(Image.open(BytesIO(png)).convert("RGB"), dtype=int)
+    px = _pixels(png)
     off = (np.abs(px - np.array(BACKGROUND)).max(axis=2) > 12).sum()
     return float(off) / (px.shape[0] * px.shape[1])
 
@@ -80,6 +76,63 @@ def _check_3d_view(page, shot: Path) -> None:
     first = canvas.get_attribute("data-cl")
     page.locator("#cl-slider").fill("0")
     page.wait_for_function(f"document.querySelector('canvas#view3d').dataset.cl !== '{first}'", timeout=20_000)
+    # the view's legend names the toolpath's colours
+    legend = page.locator("#view-legend").inner_text()
+    assert all(status in legend for status in ("engaged", "air", "rapid", "failed")), legend
+
+
+def _pixels(png: bytes) -> np.ndarray:
+    from io import BytesIO
+
+    from PIL import Image
+
+    return np.asarray(Image.open(BytesIO(png)).convert("RGB"), dtype=int)
+
+
+def _show_workpiece_at(page, canvas, index: int, cl: int) -> bytes:
+    page.locator("#cl-slider").fill(str(index))
+    # data-mesh: the CL whose workpiece (the GLB from /scene?cl=) is drawn
+    page.wait_for_function(f"document.querySelector('canvas#view3d').dataset.mesh === '{cl}'", timeout=120_000)
+    return canvas.screenshot()
+
+
+def test_the_cl_slider_shows_the_workpiece_after_each_cl(browser, service, tmp_path):
+    with service.client() as c:
+        r = c.post("/api/jobs", json=tiny_submission("slider"))
+        assert r.status_code == 201, r.text
+        job = wait_for(c, r.json()["id"])
+    assert job["state"] == "done", job
+    last = tiny_total() - 1
+    page, problems = _open(browser, service)
+    page.goto(f"{service.url}/#/jobs/{job['id']}")
+    canvas = page.locator("canvas#view3d")
+    page.wait_for_selector(f"canvas#view3d[data-mesh='{last}']", timeout=120_000)  # it opens at the last CL
+    canvas.scroll_into_view_if_needed()
+    page.screenshot(path=str(tmp_path / "page-last.png"), full_page=True)
+    # only the workpiece: the tool, arcs, lines and toolpath move with the slider too
+    for layer in ("tool", "contact_faces", "arcs", "lines", "toolpath", "axes"):
+        page.locator(f"#view-legend input[data-layer='{layer}']").uncheck()
+    early = _show_workpiece_at(page, canvas, 1, 1)  # CL 1: before the slot
+    (tmp_path / "workpiece-early.png").write_bytes(early)
+    v_early = float(canvas.get_attribute("data-volume"))
+    final = _show_workpiece_at(page, canvas, last, last)
+    (tmp_path / "workpiece-last.png").write_bytes(final)
+    v_last = float(canvas.get_attribute("data-volume"))
+    assert v_early > v_last + 10.0  # mm³: the slot and the side pass
+
+    x0, y0, x1, y1 = (int(v) for v in canvas.get_attribute("data-part-box").split(","))
+    a, b = _pixels(early), _pixels(final)
+    assert a.shape == b.shape and 0 <= x0 < x1 <= a.shape[1] and 0 <= y0 < y1 <= a.shape[0]
+    changed = np.abs(a - b).max(axis=2) > 24
+    inside = np.zeros_like(changed)
+    inside[y0:y1, x0:x1] = True
+    in_part = changed[inside].mean()
+    outside = changed[~inside].mean()
+    assert in_part > 0.01, f"the workpiece did not change: {in_part:.2%} of the part's pixels, see {tmp_path}"
+    assert outside < 0.001, f"{outside:.2%} of the pixels outside the part changed, see {tmp_path}"
+    # the part fills the view: its box is most of the canvas's width or height
+    assert max((x1 - x0) / a.shape[1], (y1 - y0) / a.shape[0]) > 0.5
+    assert not problems, problems
 
 
 def test_upload_a_job_watch_it_and_see_it_in_3d(browser, service, tmp_path):
@@ -127,9 +180,9 @@ def test_demo_job_in_the_browser(browser, service, tmp_path):
     page, problems = _open(browser, service)
     page.goto(service.url + "/#/new")
     page.click("#demo-button")
-    page.wait_for_url("**/#/jobs*")
-    _wait_done_in_list(page, "demo", 600_000)
-    _row(page, "demo").locator("a.button", has_text="Open").click()
+    page.wait_for_url("**/#/jobs/*")  # the demo opens its own page
+    assert page.locator("#cancel-button").get_attribute("class") == "danger"  # cancel looks destructive
+    page.wait_for_selector("#job-state:text-is('done')", timeout=600_000)
     _check_3d_view(page, tmp_path / "view3d-demo.png")
     assert len(page.locator("#summary-table tbody tr").all()) == 5
     assert not problems, problems

@@ -1,4 +1,5 @@
-// One job: live progress, then the per-operation summary, plots, the 3D view and the files.
+// One job: live progress (with the plots so far and the 3D view at the latest finished CL while it
+// runs), then the per-operation summary, plots, the 3D view and the files.
 
 import { ApiError, api, blobURL, download, follow, getJSON } from "../api.js";
 import { clear, h, progressBar } from "../dom.js";
@@ -9,6 +10,9 @@ const SUMMARY_COLUMNS = [
   ["failed", "failed"], ["volume_removed_mm3", "removed mm³"], ["max_ae_mm", "max ae mm"],
   ["max_ap_mm", "max ap mm"], ["time_s", "time s"],
 ];
+
+const LIVE_VIEW_MS = 3000;
+const LIVE_PLOTS_MS = 10000;
 
 export function render(root, { params }) {
   const id = params.id;
@@ -30,7 +34,9 @@ export function render(root, { params }) {
         ` submitted ${timestamp(job.created_at)}`, job.finished_at ? `, finished ${timestamp(job.finished_at)}` : ""),
       job.message ? h("p", { class: job.state === "failed" ? "error" : "" }, job.message) : null,
       ACTIVE.has(job.state)
-        ? h("button", { type: "button", onclick: () => api(`/api/jobs/${id}/cancel`, { method: "POST" }).catch(fail) }, "Cancel")
+        ? h("button", { type: "button", class: "danger", id: "cancel-button",
+          title: "Stop this job for good (the CLs finished so far are kept)",
+          onclick: () => api(`/api/jobs/${id}/cancel`, { method: "POST" }).catch(fail) }, "Cancel job")
         : null].filter(Boolean));
   };
   const fail = (err) => {
@@ -38,9 +44,56 @@ export function render(root, { params }) {
     error.hidden = false;
   };
 
+  const showPlot = (kind, img) => blobURL(`/api/jobs/${id}/plots/${kind}`).then((u) => {
+    urls.push(u);
+    img.src = u;
+  });
+
+  // While the job runs: the plots so far and the 3D view at the latest finished CL, refreshed every
+  // LIVE_VIEW_MS (plots every LIVE_PLOTS_MS: each is drawn from the whole results so far).
+  let live = null;
+  const showLive = async (job) => {
+    if (loaded || job.state !== "running" || !job.progress.done || (live && live.busy)) return;
+    const now = Date.now();
+    if (live && now - live.viewAt < LIVE_VIEW_MS) return;
+    if (!live) {
+      const plots = h("section", { class: "card plots" }, h("h2", {}, "Engagement so far"));
+      const viewCard = h("section", { class: "card" }, h("h2", {}, "3D view (latest finished CL)"));
+      const imgs = ["program", "heatmap"].map((kind) => h("img", { alt: `${kind} plot`, class: "plot", id: `plot-${kind}` }));
+      plots.append(...imgs);
+      clear(results).append(plots, viewCard);
+      live = { imgs, viewCard, plotsAt: 0, viewAt: 0, busy: false };
+    }
+    live.busy = true;
+    live.viewAt = now;
+    try {
+      if (now - live.plotsAt >= LIVE_PLOTS_MS) {
+        live.plotsAt = now;
+        ["program", "heatmap"].forEach((kind, k) => showPlot(kind, live.imgs[k]).catch(() => {}));
+      }
+      if (!view) {
+        const { JobView } = await import("../view3d.js");
+        if (loaded) return;
+        view = new JobView(live.viewCard, id);
+        await view.load();
+      } else {
+        await view.refresh();
+      }
+    } catch (err) {
+      if (err instanceof ApiError && err.status === 404) return; // no results yet: next time
+      if (view) view.dispose();
+      view = null;
+      live.viewCard.append(h("p", { class: "error" }, `3D view: ${err.message}`));
+    } finally {
+      live.busy = false;
+    }
+  };
+
   const loadResults = async (job) => {
     if (loaded) return;
     loaded = true;
+    if (view) view.dispose();
+    view = null;
     clear(results);
     const summary = h("section", { class: "card" }, h("h2", {}, "Summary per operation"));
     const plots = h("section", { class: "card plots" }, h("h2", {}, "Engagement"));
@@ -59,10 +112,7 @@ export function render(root, { params }) {
     for (const kind of ["program", "heatmap"]) {
       const img = h("img", { alt: `${kind} plot`, class: "plot", id: `plot-${kind}` });
       plots.append(img);
-      blobURL(`/api/jobs/${id}/plots/${kind}`).then((u) => {
-        urls.push(u);
-        img.src = u;
-      }).catch((err) => img.replaceWith(h("p", { class: "muted" }, `${kind}: ${err.message}`)));
+      showPlot(kind, img).catch((err) => img.replaceWith(h("p", { class: "muted" }, `${kind}: ${err.message}`)));
     }
     try {
       const list = await getJSON(`/api/jobs/${id}/files`);
@@ -90,10 +140,12 @@ export function render(root, { params }) {
       loadResults(job);
       return;
     }
+    showLive(job);
     stream = follow(`/api/jobs/${id}/events`, (event, data) => {
       if (event === "status") {
         showHeader(data);
         if (!ACTIVE.has(data.state)) loadResults(data);
+        else showLive(data);
       }
       if (event === "end" || event === "deleted") return false;
       return true;

@@ -73,7 +73,7 @@ export function render(root, { go }) {
       try {
         const r = await api("/api/jobs", { method: "POST", json: { demo: true } });
         const job = await r.json();
-        go(`#/jobs?new=${job.id}`);
+        go(`#/jobs/${job.id}`); // its own page: progress, then the results as they come
       } catch (err) {
         showError(err.message);
       } finally {
