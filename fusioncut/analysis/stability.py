@@ -1,0 +1,385 @@
+"""Chatter stability of milling per CL: zero-order approximation (ZOA) and semi-discretization (SD).
+
+Dynamic chip and forces (Altintas & Budak, *CIRP Annals* 44 (1995) 357-362; Altintas, *Manufacturing
+Automation*, 2nd ed., 2012, ch. 3). A tool-tip displacement ``q(t)`` (feed frame: x along the feed, y
+90 deg counter-clockwise) leaves the regenerative chip ``h = (dx sin phi + dy cos phi) g(phi)`` on a
+tooth at immersion ``phi``, ``d = q(t) - q(t - T)``, ``T = 60 / (N n)`` the tooth period (s) at ``n``
+rev/min with ``N`` flutes, ``g = 1`` inside an engaged arc of the band the edge is in and 0 outside.
+With ``Ft = Ktc h db`` and ``Fr = Kr Ft`` (only the cutting coefficients: edge forces do not depend on
+the vibration) the force on the tool from a band of height ``dz`` is ``(Ktc dz / 2) A(t) d`` with
+
+    a_xx = -sum_j g [sin 2phi_j + Kr (1 - cos 2phi_j)]     a_xy = -sum_j g [1 + cos 2phi_j + Kr sin 2phi_j]
+    a_yx = +sum_j g [1 - cos 2phi_j - Kr sin 2phi_j]       a_yy = +sum_j g [sin 2phi_j - Kr (1 + cos 2phi_j)]
+
+On a non-cylindrical part of the tool (lead angle ``kappa``, :mod:`fusioncut.analysis.forces`) the
+dynamic chip is ``sin(kappa)`` times the lateral one and the chip width ``dz / sin(kappa)``, so the
+tangential force is unchanged and the in-plane radial ratio becomes ``Kr = (Krc sin kappa - Kac cos
+kappa) / Ktc`` per band (the axial vibration is not modelled). Bands (height, lead angle, arcs, helix
+lag ``2 tan(beta) z / D``) are those of the force model for the same map and slice height.
+
+A CL's depth is scaled as a whole: the **directional matrix per unit depth** is the depth-weighted
+sum ``B(t) = sum_bands dz A_band(t) / ap`` (``ap`` the CL's axial depth), and the limit ``a_lim`` is
+the ``ap`` at which the CL would lose stability if all its bands grew in proportion; ``margin = ap /
+a_lim`` (< 1: stable, >= 1: chatter predicted). Matrices are turned into the machine frame (``feed
+angle`` about z; an M4 spindle mirrors y first), where the tool-tip modes are given
+(:mod:`fusioncut.analysis.dynamics`).
+
+ZOA: ``B0`` the mean of ``B(t)`` over a tooth period (exact: every tooth sweeps every arc once per
+revolution, ``B0 = N / (2 pi) * sum dz alpha / ap`` with the closed-form integrals ``alpha`` of the
+a's over the arcs). At chatter frequency ``wc`` the eigenvalues ``lambda`` of ``Phi(i wc) alpha0``
+(``alpha0 = sum dz alpha / ap``, ``Phi`` the 2x2 receptance in m/N) give ``Lambda = -1 / lambda =
+Lambda_R + i Lambda_I``, ``kappa_ = Lambda_I / Lambda_R`` and
+
+    a_lim = -2 pi Lambda_R (1 + kappa_**2) / (N Ktc),    wc T = eps + 2 k pi,  eps = pi - 2 atan(kappa_)
+
+(lobe ``k = 0, 1, ...``). For one mode in x only this is ``a_lim = 2 pi / (N Ktc alpha_xx Re Phi_xx)``.
+The limit at a given speed is the smallest ``a_lim`` over every (wc, eigenvalue) whose phase matches
+that speed's ``T`` on some lobe, found by interpolation on a chatter-frequency grid.
+
+SD (Insperger & Stepan, *Int. J. Numer. Meth. Eng.* 55 (2002) 503-518 and 61 (2004) 117-141; first
+order: Insperger, Stepan & Turi, *J. Sound Vib.* 313 (2008) 334-341): the modes are independent
+oscillators ``m q'' + c q' + k q = P^T F`` (``P`` sums the modal displacements of each direction),
+``F = (a Ktc / 2) B(t) P (q(t) - q(t - T))``. The tooth period is cut into ``steps`` intervals; on each
+the time-periodic matrix is replaced by its mean (midpoint rule on ``substeps`` points), the delayed
+state is interpolated linearly between the grid points ``T`` back, and the interval is solved exactly
+(matrix exponentials). The product over one period is the monodromy matrix: stable when its spectral
+radius is below 1. ``a_lim`` is the smallest depth at which that radius reaches 1, bracketed on a
+geometric grid around the ZOA limit and bisected.
+
+Units: ``Ktc`` N/mm² (the project's coefficients), receptances m/N, depths mm, speeds rev/min.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from fusioncut.analysis.dynamics import ToolDynamics
+# the force model's bands and tooth sampling: one definition of the engaged edge for forces and stability
+from fusioncut.analysis.forces import CuttingCoefficients, _bands, _tooth_signal
+from fusioncut.errors import GeometryError, InputError
+from fusioncut.model.engagement import CLStatus, EngagementMap
+from fusioncut.model.tools import MillingTool, SpindleDirection
+
+_TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class CLDirectional:
+    """What stability needs of one CL: bands and the directional factors per unit depth.
+
+    ``alpha0`` (2x2, machine frame, dimensionless): ``sum dz alpha / ap`` (module docstring); ``ap`` (mm)
+    the depth the factors are normalised to; ``flutes``; ``frame`` (2x2) turns immersion-frame vectors into
+    the machine frame; ``lag`` (rad, per band), ``weights`` (per band ``[basis, band, a_xx a_xy a_yx a_yy]``
+    for :func:`fusioncut.analysis.forces._tooth_signal`), ``bands`` the force model's bands.
+    """
+
+    cl_index: int
+    ap: float
+    flutes: int
+    alpha0: np.ndarray
+    frame: np.ndarray
+    lag: np.ndarray
+    weights: np.ndarray
+    bands: object
+
+    @property
+    def engaged(self) -> bool:
+        return self.ap > 0 and bool(np.any(self.alpha0))
+
+
+def _frame(spindle: SpindleDirection, feed_angle: float) -> np.ndarray:
+    t = math.radians(feed_angle)
+    rot = np.array([[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]])
+    mirror = np.diag([1.0, -1.0 if spindle == SpindleDirection.CCW else 1.0])
+    return rot @ mirror
+
+
+def _alpha_integrals(entry: np.ndarray, span: np.ndarray, kr: np.ndarray) -> np.ndarray:
+    """``int a(phi) dphi`` over each band's arcs (padding ``span < 0`` skipped), shape (M, 2, 2)."""
+    a = entry
+    e = entry + np.maximum(span, 0.0)
+    valid = span >= 0
+    k = kr[:, None]
+    s2a, s2e, c2a, c2e = np.sin(2 * a), np.sin(2 * e), np.cos(2 * a), np.cos(2 * e)
+    xx = 0.5 * ((c2e - c2a) - 2 * k * (e - a) + k * (s2e - s2a))
+    xy = 0.5 * (-(s2e - s2a) - 2 * (e - a) + k * (c2e - c2a))
+    yx = 0.5 * (-(s2e - s2a) + 2 * (e - a) + k * (c2e - c2a))
+    yy = 0.5 * (-(c2e - c2a) - 2 * k * (e - a) - k * (s2e - s2a))
+    out = np.stack((np.stack((xx, xy), -1), np.stack((yx, yy), -1)), -2)  # (M, K, 2, 2)
+    return np.where(valid[:, :, None, None], out, 0.0).sum(axis=1)
+
+
+def cl_directional(emap: EngagementMap, tool: MillingTool, coefficients: CuttingCoefficients,
+                   dz: float | None = None) -> CLDirectional:
+    """Directional factors of one CL (module docstring); a failed map raises :class:`GeometryError`."""
+    if emap.status == CLStatus.FAILED:
+        raise GeometryError(f"no engagement known ({emap.reason or 'engine failed'})", emap.cl_index)
+    if not coefficients.ktc > 0:
+        raise InputError(f"stability needs a cutting coefficient Ktc > 0 N/mm², got {coefficients.ktc:g}")
+    frame = _frame(emap.spindle, emap.feed_angle)
+    n = tool.flutes
+    if not emap.engaged_slices:
+        return CLDirectional(emap.cl_index, 0.0, n, np.zeros((2, 2)), frame, np.zeros(0), np.zeros((5, 0, 4)), None)
+    b = _bands(emap, tool, dz)
+    if not len(b.area):
+        return CLDirectional(emap.cl_index, 0.0, n, np.zeros((2, 2)), frame, np.zeros(0), np.zeros((5, 0, 4)), None)
+    ap = emap.ap if emap.ap > 1e-9 else float(b.area.sum())
+    kr = (b.sk * coefficients.krc - b.ck * coefficients.kac) / coefficients.ktc
+    alpha = np.einsum("m,mij->ij", b.area, _alpha_integrals(b.entry, b.span, kr)) / ap
+    # a's in the basis of _tooth_signal (0: sin cos, 1: cos, 2: sin^2, 3: sin, 4: 1), per unit depth
+    w = np.zeros((5, len(b.area), 4))
+    d = b.area / ap
+    w[0, :, 0], w[2, :, 0] = -2 * d, -2 * kr * d                      # -(2 s c + 2 Kr s^2)
+    w[4, :, 1], w[2, :, 1], w[0, :, 1] = -2 * d, 2 * d, -2 * kr * d   # -(2 c^2 + 2 Kr s c)
+    w[2, :, 2], w[0, :, 2] = 2 * d, -2 * kr * d                       # 2 s^2 - 2 Kr s c
+    w[0, :, 3], w[4, :, 3], w[2, :, 3] = 2 * d, -2 * kr * d, 2 * kr * d  # 2 s c - 2 Kr c^2
+    lag = 2.0 * math.tan(math.radians(tool.helix_angle)) * b.z / tool.diameter
+    return CLDirectional(emap.cl_index, float(ap), n, frame @ alpha @ frame.T, frame, lag, w, b)
+
+
+def directional_signal(cd: CLDirectional, theta: np.ndarray) -> np.ndarray:
+    """``B(theta)`` (machine frame, per unit depth, summed over the teeth), shape (len(theta), 2, 2), at
+    the spindle angles ``theta`` (rad) of tooth 0's tip."""
+    theta = np.asarray(theta, dtype=float)
+    if not cd.engaged:
+        return np.zeros((len(theta), 2, 2))
+    every = np.mod(theta[:, None] + np.arange(cd.flutes) * (_TWO_PI / cd.flutes), _TWO_PI).ravel()
+    a = _tooth_signal(every, cd.lag, cd.bands, cd.weights).reshape(len(theta), cd.flutes, 4).sum(axis=1)
+    return cd.frame @ a.reshape(-1, 2, 2) @ cd.frame.T
+
+
+# --------------------------------------------------------------------------------------------------
+# zero-order approximation
+
+
+@dataclass(frozen=True)
+class ChatterGrid:
+    """Receptances of the tool tip on a chatter-frequency grid, computed once per dynamics.
+
+    ``wc`` (rad/s, (F,)), ``phi`` (m/N, (F, 2, 2), diagonal: no cross FRF). The grid is geometric from
+    0.5 x the lowest to 2 x the highest natural frequency, ``points`` in all, plus ``points_per_mode``
+    within +-10 damping ratios of every mode (where the lobes' minima lie; a limit interpolated on that
+    grid is within 2e-4 of the exact one on the 1-DOF benchmark, ``tests/analysis/test_stability.py``).
+    """
+
+    wc: np.ndarray
+    phi: np.ndarray
+
+
+def chatter_grid(dyn: ToolDynamics, points: int = 3000, points_per_mode: int = 2000) -> ChatterGrid:
+    lo, hi = dyn.frequency_band_hz()
+    parts = [np.geomspace(0.5 * lo, 2.0 * hi, points)]
+    for _, m in dyn.all_modes:
+        parts.append(m.fn_hz * np.linspace(1 - min(10 * m.zeta, 0.5), 1 + min(10 * m.zeta, 1.0), points_per_mode))
+    wc = _TWO_PI * np.unique(np.concatenate(parts))
+    phi = np.zeros((len(wc), 2, 2), dtype=complex)
+    phi[:, 0, 0] = dyn.receptance("x", wc)
+    phi[:, 1, 1] = dyn.receptance("y", wc)
+    return ChatterGrid(wc, phi)
+
+
+def zoa_curves(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per chatter frequency and eigenvalue: ``a_lim`` (mm; NaN where the eigenvalue gives no positive
+    depth) and the phase ``eps`` (rad, in (0, 2 pi)); both shape (F, 2)."""
+    # eigenvalues of Phi alpha0 with Phi = diag(phi_x, phi_y): trace and determinant written out
+    px, py = grid.phi[:, 0, 0], grid.phi[:, 1, 1]
+    half_tr = 0.5 * (px * alpha0[0, 0] + py * alpha0[1, 1])
+    det = (px * py) * (alpha0[0, 0] * alpha0[1, 1] - alpha0[0, 1] * alpha0[1, 0])
+    root = np.sqrt(half_tr * half_tr - det)
+    lam = np.stack((half_tr + root, half_tr - root), axis=1)
+    # Lambda = -1/lambda: a_lim = -2 pi Lambda_R (1 + kappa^2) / (N Kt) = 2 pi / (N Kt Re lambda) and
+    # kappa = -Im lambda / Re lambda; a positive depth needs Re lambda > 0
+    lr, li = lam.real, lam.imag
+    ok = lr > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a_lim = np.where(ok, 2 * math.pi / (flutes * ktc * 1e6 * np.where(ok, lr, 1.0)) * 1e3, np.nan)  # m -> mm
+        eps = math.pi + 2.0 * np.arctan(li / np.where(ok, lr, 1.0))
+    return a_lim, eps
+
+
+def zoa_a_lim(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: np.ndarray | float,
+              curves: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """ZOA limiting depth (mm) at each spindle speed ``rpm`` (rev/min); ``inf`` when no lobe reaches it."""
+    rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
+    a, eps = curves if curves is not None else zoa_curves(alpha0, grid, ktc, flutes)
+    period = 60.0 / (flutes * rpm)  # (R,)
+    # lobe number u = (wc T - eps) / 2 pi: the speed is on a lobe where u crosses an integer >= 0
+    u = (grid.wc[None, :, None] * period[:, None, None] - eps[None]) / _TWO_PI  # (R, F, 2)
+    k0, k1 = np.floor(u[:, :-1]), np.floor(u[:, 1:])
+    cross = (k0 != k1) & (np.maximum(k0, k1) >= 0)
+    a0, a1 = a[None, :-1], a[None, 1:]
+    frac = np.where(cross, (np.maximum(k0, k1) - u[:, :-1]) / np.where(cross, u[:, 1:] - u[:, :-1], 1.0), 0.0)
+    # a crossing between points where both depths are known; a jump of eps (Lambda_R through 0, a -> inf)
+    # is no lobe: it is excluded by requiring both ends finite and the phase step below pi
+    jump = np.abs(np.diff(eps, axis=0))[None] < math.pi
+    val = np.where(cross & np.isfinite(a0) & np.isfinite(a1) & jump, a0 + frac * (a1 - a0), np.inf)
+    return val.min(axis=(1, 2))
+
+
+def zoa_lobes(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm_lo: float, rpm_hi: float,
+              speeds: int = 400) -> tuple[np.ndarray, np.ndarray]:
+    """Speeds (rev/min, ``speeds`` evenly spaced) and the ZOA limiting depth (mm) at each."""
+    rpm = np.linspace(rpm_lo, rpm_hi, speeds)
+    curves = zoa_curves(alpha0, grid, ktc, flutes)
+    out = np.concatenate([zoa_a_lim(alpha0, grid, ktc, flutes, rpm[i:i + 50], curves) for i in range(0, speeds, 50)])
+    return rpm, out
+
+
+def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: float, ap: float,
+                       rpm_lo: float, rpm_hi: float, speeds: int = 401) -> float:
+    """The speed in ``[rpm_lo, rpm_hi]`` (searched on ``speeds`` evenly spaced speeds, so to within
+    their spacing) nearest to ``rpm`` where the ZOA limit exceeds ``ap`` (mm); ``rpm`` itself when
+    stable there; NaN when none of the speeds is stable."""
+    curves = zoa_curves(alpha0, grid, ktc, flutes)
+    if zoa_a_lim(alpha0, grid, ktc, flutes, rpm, curves)[0] > ap:
+        return float(rpm)
+    cand = np.linspace(rpm_lo, rpm_hi, speeds)
+    lim = np.concatenate([zoa_a_lim(alpha0, grid, ktc, flutes, cand[i:i + 50], curves) for i in range(0, speeds, 50)])
+    ok = np.flatnonzero(lim > ap)
+    if not len(ok):
+        return math.nan
+    return float(cand[ok[np.argmin(np.abs(cand[ok] - rpm))]])
+
+
+# --------------------------------------------------------------------------------------------------
+# semi-discretization
+
+
+def _expm(a: np.ndarray) -> np.ndarray:
+    """Matrix exponential of a stack of square matrices (..., n, n): scaling and squaring of a degree-14
+    Taylor polynomial after scaling to a 1-norm below 1/2 (truncation error below 1e-17 relative)."""
+    norm = np.abs(a).sum(axis=-2).max()
+    s = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
+    x = a / (2.0 ** s)
+    eye = np.broadcast_to(np.eye(a.shape[-1]), a.shape)
+    out = eye + x / 14.0
+    for k in range(13, 0, -1):
+        out = eye + (x @ out) / k
+    for _ in range(s):
+        out = out @ out
+    return out
+
+
+@dataclass(frozen=True)
+class ModalSystem:
+    """The modes as oscillators: masses ``m`` (kg), damping ``c`` (N s/m), stiffness ``k`` (N/m) (n,),
+    and ``p`` (2, n) summing each direction's modal displacements."""
+
+    m: np.ndarray
+    c: np.ndarray
+    k: np.ndarray
+    p: np.ndarray
+
+    @classmethod
+    def from_dynamics(cls, dyn: ToolDynamics) -> "ModalSystem":
+        modes = dyn.all_modes
+        p = np.zeros((2, len(modes)))
+        for i, (d, _) in enumerate(modes):
+            p[0 if d == "x" else 1, i] = 1.0
+        return cls(np.array([m.mass_kg for _, m in modes]), np.array([m.damping_n_s_per_m for _, m in modes]),
+                   np.array([m.k_n_per_m for _, m in modes]), p)
+
+
+def _step_matrices(cd: CLDirectional, steps: int, substeps: int) -> np.ndarray:
+    """Mean of ``B(t)`` over each of ``steps`` intervals of a tooth period, shape (steps, 2, 2)."""
+    pitch = _TWO_PI / cd.flutes
+    theta = (np.arange(steps * substeps) + 0.5) * (pitch / (steps * substeps))
+    return directional_signal(cd, theta).reshape(steps, substeps, 2, 2).mean(axis=1)
+
+
+def sd_spectral_radius(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray, a_mm: np.ndarray,
+                       steps: int = 40, substeps: int = 8, b_steps: np.ndarray | None = None) -> np.ndarray:
+    """Spectral radius of the first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``."""
+    rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
+    a_mm = np.atleast_1d(np.asarray(a_mm, dtype=float))
+    rpm, a_mm = np.broadcast_arrays(rpm, a_mm)
+    nb, n, m = len(rpm), len(system.m), steps
+    b = _step_matrices(cd, steps, substeps) if b_steps is None else b_steps
+    w = 0.5 * ktc * 1e6 * np.einsum("ai,sab,bj->sij", system.p, b, system.p)  # (steps, n, n) N/m per m
+    minv = 1.0 / system.m
+    dt = 60.0 / (cd.flutes * rpm) / m  # (nb,)
+    a_si = a_mm * 1e-3
+    # augmented generator [[A, I, 0], [0, 0, I], [0, 0, 0]] dt: blocks exp(A dt), int e^{As}, int e^{As}(dt-s)
+    d2 = 2 * n
+    gen = np.zeros((nb, m, 3 * d2, 3 * d2))
+    gen[:, :, :n, n:d2] = np.eye(n)
+    cut = a_si[:, None, None, None] * minv[None, None, :, None] * w[None]  # a M^-1 W: (nb, steps, n, n)
+    gen[:, :, n:d2, :n] = -np.diag(minv * system.k)[None, None] + cut
+    gen[:, :, n:d2, n:d2] = -np.diag(minv * system.c)
+    gen[:, :, :d2, d2:2 * d2] = np.eye(d2)
+    gen[:, :, d2:2 * d2, 2 * d2:] = np.eye(d2)
+    gen *= dt[:, None, None, None]
+    # exp(gen) = [[e^{A dt}, int_0^dt e^{As} ds, int_0^dt e^{As} (dt - s) ds], ...] (Van Loan)
+    e = _expm(gen)
+    phi0 = e[:, :, :d2, :d2]
+    phi1 = e[:, :, :d2, d2:2 * d2]                          # int_0^dt e^{A(dt-s)} ds
+    phi2 = e[:, :, :d2, 2 * d2:] / dt[:, None, None, None]  # int_0^dt e^{A(dt-s)} s ds / dt
+    # delayed term: y'' gets -a M^-1 W q(t - T); its input matrix acts on the velocity rows
+    bq = -cut
+    c_old = (phi1 - phi2)[..., n:] @ bq   # coefficient of q_{i-m}
+    c_new = phi2[..., n:] @ bq            # coefficient of q_{i-m+1}
+    # rows of the monodromy matrix, propagated step by step: y (the state) and the delayed positions
+    # q_{i-1} .. q_{i-m} (a list: shifting it moves references, not rows)
+    dim = d2 + m * n
+    eye = np.broadcast_to(np.eye(dim), (nb, dim, dim))
+    y = eye[:, :d2].copy()
+    delayed = [eye[:, d2 + j * n: d2 + (j + 1) * n] for j in range(m)]
+    for i in range(m):
+        newer = delayed[-2] if m > 1 else y[:, :n]  # q_{i-m+1}
+        top = phi0[:, i] @ y + c_old[:, i] @ delayed[-1] + c_new[:, i] @ newer
+        delayed = [y[:, :n]] + delayed[:-1]
+        y = top
+    z = np.concatenate([y, *delayed], axis=1)
+    return np.abs(np.linalg.eigvals(z)).max(axis=1)
+
+
+def sd_steps(system: ModalSystem, flutes: int, rpm: float, steps: int, per_vibration: float) -> int:
+    """Steps per tooth period: at least ``steps`` and ``per_vibration`` per period of the highest mode
+    (at low speeds a tooth period holds many vibrations), rounded up to a multiple of 10."""
+    f_max = float(np.sqrt(system.k / system.m).max()) / _TWO_PI
+    need = max(steps, math.ceil(per_vibration * f_max * 60.0 / (flutes * rpm)))
+    return int(10 * math.ceil(need / 10))
+
+
+def sd_a_lim(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: Sequence[float] | float, a_ref: np.ndarray,
+             steps: int = 30, per_vibration: float = 12.0, substeps: int = 8, grid_points: int = 20,
+             bisections: int = 10) -> np.ndarray:
+    """SD limiting depth (mm) at each speed: the smallest depth on the geometric grid ``a_ref x [0.05,
+    10]`` (``grid_points``) that is unstable, bisected ``bisections`` times against the stable point
+    below it. ``a_ref`` is a scale per speed (the ZOA limit; where that is not finite the CL's ``ap``).
+    ``inf`` when the whole grid is stable; the smallest grid depth when that is already unstable. Steps
+    per tooth period: :func:`sd_steps`."""
+    rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
+    ref = np.broadcast_to(np.asarray(a_ref, dtype=float), rpm.shape)
+    out = np.full(rpm.shape, np.inf)
+    if not cd.engaged:
+        return out
+    m_of = np.array([sd_steps(system, cd.flutes, r, steps, per_vibration) for r in rpm])
+    for m in np.unique(m_of):
+        idx = np.flatnonzero(m_of == m)
+        out[idx] = _sd_a_lim_fixed(cd, system, ktc, rpm[idx], ref[idx], int(m), substeps, grid_points, bisections)
+    return out
+
+
+def _sd_a_lim_fixed(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray, ref: np.ndarray,
+                    steps: int, substeps: int, grid_points: int, bisections: int) -> np.ndarray:
+    b = _step_matrices(cd, steps, substeps)
+    ratios = np.geomspace(0.05, 10.0, grid_points)
+    depths = ref[:, None] * ratios[None, :]
+    rho = sd_spectral_radius(cd, system, ktc, np.repeat(rpm, grid_points), depths.ravel(), steps, substeps, b)
+    unstable = rho.reshape(len(rpm), grid_points) >= 1.0
+    first = np.where(unstable.any(axis=1), unstable.argmax(axis=1), -1)
+    rows = np.arange(len(rpm))
+    lo = np.where(first > 0, depths[rows, np.maximum(first - 1, 0)], np.nan)
+    hi = np.where(first > 0, depths[rows, np.maximum(first, 0)], np.nan)
+    todo = np.flatnonzero(first > 0)
+    for _ in range(bisections if len(todo) else 0):
+        mid = np.sqrt(lo[todo] * hi[todo])
+        bad = sd_spectral_radius(cd, system, ktc, rpm[todo], mid, steps, substeps, b) >= 1.0
+        hi[todo] = np.where(bad, mid, hi[todo])
+        lo[todo] = np.where(bad, lo[todo], mid)
+    out = np.where(first > 0, np.sqrt(lo * hi), np.inf)
+    return np.where(first == 0, depths[:, 0], out)
