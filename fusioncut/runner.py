@@ -41,7 +41,8 @@ from fusioncut import __version__
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.segments import segments_for
-from fusioncut.errors import FusionCutError, InputError, ToolDefinitionError
+from fusioncut.errors import FusionCutError, InputError
+from fusioncut.io import tool_sources
 from fusioncut.io.job import RUN_OPTIONS, Job, build_stock, job_hash, read_toolpath
 from fusioncut.io.results import ResultWriter, load_results
 from fusioncut.model import CLStatus, EngagementMap, MillingTool, Move, Stock, Toolpath
@@ -156,11 +157,12 @@ class PreparedJob:
 def prepare_job(job: Job, base: Path) -> PreparedJob:
     """Read and check every input of ``job`` (paths relative to ``base``); writes nothing.
 
-    Tools are resolved per T number: the job's ``tools`` first, then the tool library (through
-    :meth:`ToolLibrary.require`, so a tool the library could not model fails with its reason), then
-    the tools the toolpath file describes itself (Fusion tool comments, APT ``CUTTER``). Moves
-    without a T word use the only tool defined when there is exactly one. Anything unresolved is an
-    :class:`InputError` naming the ``file:line`` of the first move concerned.
+    Tools are resolved per T number (:func:`fusioncut.io.tool_sources.resolve_tools`): the job's
+    ``tools`` first, then the tool library (a tool the library could not model fails with its
+    reason) and the tools the toolpath file describes itself (Fusion tool comments, APT ``CUTTER``),
+    in the order the job's ``tool_source`` says; sources that disagree on a tool are warned about.
+    Moves without a T word use the only tool defined when there is exactly one. Anything
+    unresolved is an :class:`InputError` naming the ``file:line`` of the first move concerned.
     """
     library = None
     if job.tool_library:
@@ -171,11 +173,7 @@ def prepare_job(job: Job, base: Path) -> PreparedJob:
             log.warning("%s", w)
         for number, err in sorted(library.refused.items()):
             log.warning("tool library: T%d left out: %s", number, err)
-    job_tools: dict[int, MillingTool] = {}
-    for spec in job.tools:
-        if spec.number in job_tools:
-            raise InputError(f"tools: T{spec.number} is defined twice", base)
-        job_tools[spec.number] = spec.build()
+    job_tools = tool_sources.job_tools(job.tools, library, base)
     given: dict[int, MillingTool] = {**(library or {}), **job_tools}
 
     moves: list[Move] = []
@@ -183,7 +181,10 @@ def prepare_job(job: Job, base: Path) -> PreparedJob:
     file_tools: dict[int, MillingTool] = {}
     for name in job.toolpaths:
         tp = read_toolpath(base / name, given, job.strict)
-        for n, t in tp.tools.items():
+        again = tool_sources.program_first_tools(tp, given, job_tools, job.tool_source)
+        if again is not None:  # compensate with the program's tool radii, not the library's
+            tp = read_toolpath(base / name, again, job.strict)
+        for n, t in (tp.program_tools if tp.program_tools is not None else tp.tools).items():
             file_tools.setdefault(n, t)
         moves.extend(tp.moves)
         warnings.extend(tp.warnings)
@@ -192,7 +193,11 @@ def prepare_job(job: Job, base: Path) -> PreparedJob:
     if not moves:
         raise InputError("the toolpath has no moves", base / job.toolpaths[0])
 
-    tools, default_tool = _resolve_tools(moves, job_tools, library, file_tools)
+    tools, default_tool, tool_warnings = tool_sources.resolve_tools(moves, job_tools, library, file_tools,
+                                                                    job.tool_source)
+    for w in tool_warnings:
+        log.warning("%s", w)
+    warnings.extend(tool_warnings)
     toolpath = Toolpath(tuple(moves), tools, tuple(warnings), source=",".join(job.toolpaths))
     stock = build_stock(job.stock, base)
     if stock is None:
@@ -204,41 +209,6 @@ def prepare_job(job: Job, base: Path) -> PreparedJob:
     return PreparedJob(toolpath, stock, EngineOptions(**engine_opts), default_tool, job_hash(job, base),
                        job.options.checkpoint_every, tuple(job.options.snapshot_cls), job.options.workers,
                        job.options.scheduler)
-
-
-def _resolve_tools(moves: list[Move], job_tools: dict[int, MillingTool], library: Any,
-                   file_tools: dict[int, MillingTool]) -> tuple[dict[int, MillingTool], MillingTool | None]:
-    first_use: dict[int, Move] = {}
-    untooled: Move | None = None
-    for m in moves:
-        if m.tool is None:
-            untooled = untooled or m
-        elif m.tool not in first_use:
-            first_use[m.tool] = m
-    tools: dict[int, MillingTool] = {}
-    for n, m in first_use.items():
-        if n in job_tools:
-            tools[n] = job_tools[n]
-        elif library is not None and (n in library or n in library.refused):
-            try:
-                tools[n] = library.require(n)
-            except ToolDefinitionError as e:
-                raise ToolDefinitionError(f"the program uses T{n} here, but {e}", m.source) from None
-        elif n in file_tools:
-            tools[n] = file_tools[n]
-        else:
-            raise InputError(f"no tool definition for T{n} (give it in the job's 'tools' or a 'tool_library')",
-                             m.source)
-    default_tool = None
-    if untooled is not None:
-        defined = {**file_tools, **(library or {}), **job_tools}
-        if len(defined) != 1:
-            raise InputError(
-                f"this move has no tool: the program selects none (no T word) and {len(defined)} tools are "
-                "defined; select one in the program or define exactly one tool in the job", untooled.source)
-        default_tool = next(iter(defined.values()))
-        log.warning("%s: moves without a T word use the only tool defined, %s", untooled.source, default_tool.label)
-    return tools, default_tool
 
 
 # --------------------------------------------------------------------------------------------------

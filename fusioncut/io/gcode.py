@@ -36,9 +36,10 @@ Rules worth knowing
   write M6; after the first M6, a ``T`` only prepares the next tool (Fanuc-style pre-staging).
   Tool comments as Fusion/HSM posts write them, ``(T1 D=2.65 CR=0 - ZMIN=-12.55 - flat end mill)``,
   become :class:`~fusioncut.model.tools.MillingTool` objects in ``Toolpath.tools`` (flat, ball,
-  bull-nose, chamfer, drill as a 118 degree chamfer, tapered; by the words and ``CR``/``TAPER``),
-  in the program's units (its first G20/G21); the flute length is not in the comment and is taken as
-  ``max(3 * D, -ZMIN)``. A ``tools`` mapping passed in replaces them.
+  bull-nose, chamfer, drill (``TAPER`` is its point angle, 118 degrees if absent), tapered; by the
+  words and ``CR``/``TAPER``), in the program's units (its first G20/G21); the flute length is not
+  in the comment and is taken as ``max(3 * D, -ZMIN)``. A ``tools`` mapping passed in replaces them
+  (the program's own are then in ``Toolpath.program_tools``, each with its ``file:line`` as source).
 * Arc centres: ``arc_centers="auto"`` starts in G91.1 (incremental I/J/K). When an I/J/K arc fails
   LinuxCNC's radius check (start and end radius differ by more than 0.0283 mm / 0.00283 in and by
   more than 0.1 %, or by more than 100 times those lengths) while reading I/J/K as absolute centres
@@ -93,6 +94,7 @@ from fusioncut.model.tools import (
     BallEndMill,
     BullNoseEndMill,
     ChamferMill,
+    Drill,
     FlatEndMill,
     MillingTool,
     TaperedEndMill,
@@ -456,7 +458,10 @@ class GCodeInterpreter:
                 warnings.append(f"{self.source}: dropped {dropped} zero-length move{'s' if dropped != 1 else ''}")
             moves = kept
         tools = self.user_tools if self.user_tools is not None else self._tools_from_comments(warnings)
-        return Toolpath(moves=tuple(moves), tools=tools, warnings=tuple(warnings), source=self.source)
+        # tools given replace the comments' (unusable comments then go unreported); keep the program's own
+        program = self._tools_from_comments([]) if self.user_tools is not None else None
+        return Toolpath(moves=tuple(moves), tools=tools, warnings=tuple(warnings), source=self.source,
+                        program_tools=program)
 
     # ------------------------------------------------------------------ program text / flow control
     def _block(self, i: int) -> Block:
@@ -1127,8 +1132,8 @@ class GCodeInterpreter:
         tools: dict[int, MillingTool] = {}
         for number, (d, cr, taper, zmin, kind, where) in self._tool_comments.items():  # type: ignore[misc]
             try:
-                tools[number] = _make_tool(number, d * scale, (cr or 0.0) * scale, taper,
-                                           None if zmin is None else zmin * scale, kind)
+                tools[number] = replace(_make_tool(number, d * scale, (cr or 0.0) * scale, taper,
+                                                   None if zmin is None else zmin * scale, kind), source=str(where))
             except ToolDefinitionError as e:
                 warnings.append(f"{where}: tool comment not usable: {e.reason}")
         return tools
@@ -1661,8 +1666,8 @@ def _make_tool(number: int, d: float, cr: float, taper: float | None, zmin: floa
     words = kind.lower()
     if "ball" in words or (cr > 0 and abs(cr - d / 2) < 1e-9):
         return BallEndMill(diameter=d, flute_length=max(flute, d / 2), number=number)
-    if "drill" in words:
-        return ChamferMill(diameter=d, flute_length=flute, taper_angle=taper or 59.0, number=number)
+    if "drill" in words:  # Fusion's TAPER= of a drill is its point's included angle (118 typical)
+        return Drill(diameter=d, flute_length=flute, point_angle=taper or 118.0, number=number)
     if any(k in words for k in ("chamfer", "spot", "engrav", "countersink", "v-bit", "vbit")):
         return ChamferMill(diameter=d, flute_length=flute, taper_angle=taper or 45.0, number=number)
     if "taper" in words and taper:

@@ -8,16 +8,20 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fusioncut.errors import InputError
 from fusioncut.model.moves import Toolpath
 from fusioncut.model.stock import BoxStock, CylinderStock, Stock
-from fusioncut.model.tools import (AptCutter, AptParameters, BallEndMill, BullNoseEndMill, ChamferMill, FlatEndMill,
-                                   MillingTool, SpindleDirection, TaperedEndMill)
+from fusioncut.model.tools import (AptCutter, AptParameters, BallEndMill, BullNoseEndMill, ChamferMill, Drill,
+                                   FlatEndMill, MillingTool, SpindleDirection, TaperedEndMill)
+
+if TYPE_CHECKING:
+    from fusioncut.io.tool_library import ToolLibrary
 
 
 class _Strict(BaseModel):
@@ -51,29 +55,76 @@ class StockSpec(_Strict):
         return self
 
 
+class LibraryRef(_Strict):
+    """A tool of the job's ``tool_library`` picked by its ``name`` (Fusion ``description``, the
+    table's comment; case ignored) or its ``id`` (Fusion ``guid``), whatever number it has there."""
+
+    name: str | None = None
+    id: str | None = None
+
+    @model_validator(mode="after")
+    def _one_key(self) -> LibraryRef:
+        if (self.name is None) == (self.id is None):
+            raise ValueError("give exactly one of 'name' and 'id'")
+        return self
+
+
+_GEOMETRY = ("kind", "diameter", "flute_length", "corner_radius", "taper_angle", "tip_diameter", "point_angle",
+             "apt", "flutes", "helix_angle", "spindle", "shank_diameter", "overall_length", "neck_diameter",
+             "shoulder_length", "name")
+
+
 class ToolSpec(_Strict):
-    """One tool. ``kind``: flat, ball, bullnose, tapered, chamfer, apt. Lengths mm, angles degrees."""
+    """One tool, numbered as the program uses it: either its geometry (``kind``: flat, ball,
+    bullnose, tapered, chamfer, drill, apt; lengths mm, angles degrees; ``point_angle`` is a drill's
+    included angle; ``neck_diameter`` up to ``shoulder_length`` a reduced neck) or ``library``, a
+    tool of the job's tool library picked by name or id (:class:`LibraryRef`) and given this number."""
 
     number: int
-    kind: Literal["flat", "ball", "bullnose", "tapered", "chamfer", "apt"]
-    diameter: float = Field(gt=0)
-    flute_length: float = Field(gt=0)
+    kind: Literal["flat", "ball", "bullnose", "tapered", "chamfer", "drill", "apt"] | None = None
+    diameter: float | None = Field(None, gt=0)
+    flute_length: float | None = Field(None, gt=0)
     corner_radius: float = 0.0
     taper_angle: float = 0.0
     tip_diameter: float = 0.0
+    point_angle: float = 118.0
     apt: tuple[float, float, float, float, float, float, float] | None = None  # d, r, e, f, alpha, beta, h
     flutes: int = 2
     helix_angle: float = 30.0
     spindle: Literal["cw", "ccw"] = "cw"
     shank_diameter: float | None = None
     overall_length: float | None = None
+    neck_diameter: float | None = None
+    shoulder_length: float | None = None
     name: str = ""
+    library: LibraryRef | None = None
 
-    def build(self) -> MillingTool:
+    @model_validator(mode="after")
+    def _geometry_or_library(self) -> ToolSpec:
+        if self.library is not None:
+            given = sorted(k for k in _GEOMETRY if k in self.model_fields_set)
+            if given:
+                raise ValueError(f"a tool picked from the library takes only 'number' and 'library', not "
+                                 f"{', '.join(given)}")
+        else:
+            missing = [k for k in ("kind", "diameter", "flute_length") if getattr(self, k) is None]
+            if missing:
+                raise ValueError(f"a tool needs {', '.join(missing)} (or 'library' to pick one from the tool library)")
+        return self
+
+    def build(self, library: ToolLibrary | None = None) -> MillingTool:
+        """The model tool; a ``library`` pick needs the job's tool library (:class:`InputError` without)."""
+        if self.library is not None:
+            if library is None:
+                raise InputError(f"tools: T{self.number} is picked from the tool library, but the job has no "
+                                 "'tool_library'")
+            tool = library.pick(name=self.library.name, id=self.library.id)
+            return replace(tool, number=self.number)
         common = dict(diameter=self.diameter, flute_length=self.flute_length, flutes=self.flutes,
                       helix_angle=self.helix_angle, spindle=SpindleDirection(self.spindle),
                       shank_diameter=self.shank_diameter, overall_length=self.overall_length,
-                      number=self.number, name=self.name)
+                      neck_diameter=self.neck_diameter, shoulder_length=self.shoulder_length,
+                      number=self.number, name=self.name, source=f"job tools: T{self.number}")
         if self.kind == "flat":
             return FlatEndMill(**common)
         if self.kind == "ball":
@@ -84,6 +135,8 @@ class ToolSpec(_Strict):
             return TaperedEndMill(**common, taper_angle=self.taper_angle)
         if self.kind == "chamfer":
             return ChamferMill(**common, tip_diameter=self.tip_diameter, taper_angle=self.taper_angle)
+        if self.kind == "drill":
+            return Drill(**common, point_angle=self.point_angle)
         if self.apt is None:
             raise InputError(f"tool T{self.number}: kind 'apt' needs the 7 parameters in 'apt'")
         return AptCutter(**common, apt_parameters=AptParameters(*self.apt))
@@ -134,6 +187,10 @@ class Job(_Strict):
     stock: StockSpec
     tools: list[ToolSpec] = []
     tool_library: str | None = None
+    tool_source: Literal["library", "program"] = "library"
+    """Which definition of a T number wins when the tool library and the program (its tool comments,
+    APT cutters, JSON sections) both give one: the job's ``tools`` always win, then this source, then
+    the other. Disagreements on the cutting geometry are warned about either way."""
     toolpaths: list[str] = Field(min_length=1)
     strict: bool = False
     options: Options = Options()

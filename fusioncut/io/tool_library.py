@@ -62,21 +62,61 @@ from fusioncut.model.tools import (
     TaperedEndMill,
 )
 
-__all__ = ["ToolLibrary", "CamoticsProject", "fusion_tool", "read_tool_library", "read_camotics_project"]
+__all__ = ["ToolLibrary", "LibraryEntry", "CamoticsProject", "fusion_tool", "read_tool_library",
+           "read_camotics_project"]
 
 Num = Annotated[float, Strict(), AllowInfNan(False)]
 
 
+@dataclass(frozen=True)
+class LibraryEntry:
+    """One tool entry of a library as written, numbered or not, kept or not: ``where`` (``data[3]``,
+    ``line 7``), ``name`` (Fusion ``description``, the table comment), ``id`` (Fusion ``guid``),
+    ``number`` (its T number, ``None`` when it has none), and the model ``tool`` or the ``error``
+    that refused it."""
+
+    where: str
+    name: str
+    id: str | None
+    number: int | None
+    tool: MillingTool | None = None
+    error: ToolDefinitionError | None = None
+
+
 class ToolLibrary(dict[int, MillingTool]):
     """Tools by T number (mm), plus what the reader assumed (``warnings``) and the tools it could not
-    model (``refused``: T number -> the error to raise when that tool is needed)."""
+    model (``refused``: T number -> the error to raise when that tool is needed). ``entries`` are all
+    tool entries, duplicates and unnumbered ones included, for :meth:`pick` (default: one per tool)."""
 
     def __init__(self, tools: dict[int, MillingTool], *, warnings: tuple[str, ...] = (),
-                 refused: dict[int, ToolDefinitionError] | None = None, source: str = "<memory>"):
+                 refused: dict[int, ToolDefinitionError] | None = None, source: str = "<memory>",
+                 entries: tuple[LibraryEntry, ...] | None = None):
         super().__init__(tools)
         self.warnings = warnings
         self.refused = dict(refused or {})
         self.source = source
+        if entries is None:
+            entries = tuple(LibraryEntry(f"T{n}", t.name, None, n, tool=t) for n, t in tools.items())
+            entries += tuple(LibraryEntry(f"T{n}", "", None, n, error=e) for n, e in self.refused.items())
+        self.entries = entries
+
+    def pick(self, *, name: str | None = None, id: str | None = None) -> MillingTool:
+        """The tool of the one entry whose ``name`` (case and surrounding blanks ignored) or ``id`` is
+        given, whatever its number; :class:`ToolDefinitionError` naming the library when none or
+        several match, or when that entry was refused."""
+        key, want = ("id", id.strip().lower()) if id is not None else ("name", (name or "").strip().lower())
+        found = [e for e in self.entries if (getattr(e, key) or "").strip().lower() == want]
+        where = SourceLocation(self.source)
+        if not found:
+            raise ToolDefinitionError(f"no tool with {key} {want!r} in the tool library", where)
+        if len(found) > 1:
+            listed = ", ".join(f"{e.where} (id {e.id})" if e.id else e.where for e in found[:6])
+            raise ToolDefinitionError(f"{len(found)} tools have {key} {want!r} in the tool library: {listed}"
+                                      + ("; pick one by its id" if key == "name" else ""), where)
+        entry = found[0]
+        if entry.tool is None:
+            raise entry.error or ToolDefinitionError(f"{entry.where}: no tool", where)
+        return entry.tool
 
     def require(self, number: int) -> MillingTool:
         """The tool numbered ``number``; :class:`ToolDefinitionError` if it was refused or is absent."""
@@ -300,6 +340,7 @@ class _FusionTool(BaseModel):
     type: str
     unit: Literal["millimeters", "inches"] = "millimeters"
     description: str = ""
+    guid: str | None = None
     geometry: _Geometry | None = None
     post_process: _PostProcess | None = Field(default=None, alias="post-process")
     tapered_type: str | None = Field(default=None, alias="tapered-type")
@@ -338,10 +379,8 @@ def _fusion_library_from_text(text: str, file: str) -> ToolLibrary:
         lib = _FusionLibrary.model_validate(doc)
     except ValidationError as e:
         raise InputError(pydantic_message(e, ""), SourceLocation(file)) from e
-    tools: dict[int, MillingTool] = {}
-    refused: dict[int, ToolDefinitionError] = {}
     warnings: list[str] = []
-    seen: dict[int, int] = {}
+    entries: list[LibraryEntry] = []
     where = SourceLocation(file)
     for i, raw in enumerate(lib.data):
         path = f"data[{i}]"
@@ -353,42 +392,60 @@ def _fusion_library_from_text(text: str, file: str) -> ToolLibrary:
             continue
         number = entry.post_process.number if entry.post_process else None
         name = entry.description or entry.type
-        if number is None:
-            warnings.append(f"{where}: {path}: tool {name!r} has no post-process number; left out")
-            continue
-        if number in seen:
-            warnings.append(f"{where}: {path}: T{number} already defined by data[{seen[number]}]; this one left out")
-            continue
-        seen[number] = i
+        tool: MillingTool | None = None
+        error: ToolDefinitionError | None = None
         if entry.geometry is None:
-            refused[number] = ToolDefinitionError(f"{path}: tool {name!r} (T{number}) has no geometry", where)
-            continue
-        g = entry.geometry
-        k = INCH if entry.unit == "inches" else 1.0
+            number_text = f" (T{number})" if number is not None else ""
+            error = ToolDefinitionError(f"{path}: tool {name!r}{number_text} has no geometry", where)
+        else:
+            g = entry.geometry
+            k = INCH if entry.unit == "inches" else 1.0
 
-        def mm(v: float | None, k: float = k) -> float | None:
-            return None if v is None else v * k
+            def mm(v: float | None, k: float = k) -> float | None:
+                return None if v is None else v * k
 
-        try:
-            tools[number] = fusion_tool(
-                entry.type, where, warnings, json_path=path, diameter=g.DC * k, flute_length=mm(g.LCF),
-                corner_radius=mm(g.RE) or 0.0, tip_diameter=mm(g.tip_diameter), taper_angle=g.TA or 0.0,
-                point_angle=g.SIG, shank_diameter=mm(g.SFDM),
-                # the stick-out below the holder is what can touch the work; OAL includes the clamped part
-                overall_length=mm(g.LB) if g.LB else mm(g.OAL), flutes=g.NOF,
-                number=number, name=entry.description,
-                spindle=SpindleDirection.CCW if g.HAND is False else SpindleDirection.CW,
-                tapered_type=entry.tapered_type, shoulder_length=mm(g.shoulder_length),
-                neck_diameter=mm(g.shoulder_diameter), source=f"{file}: {path} {name!r}",
-            )
-        except ToolDefinitionError as e:
-            refused[number] = e
+            try:
+                tool = fusion_tool(
+                    entry.type, where, warnings, json_path=path, diameter=g.DC * k, flute_length=mm(g.LCF),
+                    corner_radius=mm(g.RE) or 0.0, tip_diameter=mm(g.tip_diameter), taper_angle=g.TA or 0.0,
+                    point_angle=g.SIG, shank_diameter=mm(g.SFDM),
+                    # the stick-out below the holder is what can touch the work; OAL includes the clamped part
+                    overall_length=mm(g.LB) if g.LB else mm(g.OAL), flutes=g.NOF,
+                    number=number, name=entry.description,
+                    spindle=SpindleDirection.CCW if g.HAND is False else SpindleDirection.CW,
+                    tapered_type=entry.tapered_type, shoulder_length=mm(g.shoulder_length),
+                    neck_diameter=mm(g.shoulder_diameter), source=f"{file}: {path} {name!r}",
+                )
+            except ToolDefinitionError as e:
+                error = e
+        entries.append(LibraryEntry(path, name, entry.guid, number, tool, error))
+    by_number: dict[int, list[LibraryEntry]] = {}
+    for e in entries:
+        if e.number is None:
+            warnings.append(f"{where}: {e.where}: tool {e.name!r} has no post-process number; a job can still "
+                            "pick it by name or id")
+        else:
+            by_number.setdefault(e.number, []).append(e)
+    tools: dict[int, MillingTool] = {}
+    refused: dict[int, ToolDefinitionError] = {}
+    for number, same in by_number.items():
+        first = same[0]
+        if first.tool is not None:
+            tools[number] = first.tool
+        else:
+            refused[number] = first.error  # type: ignore[assignment]
+        if len(same) > 1:
+            others = ", ".join(f"{e.where} {e.name!r}" for e in same[1:6]) + (
+                f" and {len(same) - 6} more" if len(same) > 6 else "")
+            warnings.append(f"{where}: T{number} is the number of {len(same)} tools; {first.where} {first.name!r} "
+                            f"is kept as T{number}, not {others}; a job picks another by name or id "
+                            f"(tools: {{\"number\": {number}, \"library\": {{\"name\": ...}}}})")
     if refused:
         warnings.append(
             f"{file}: {len(refused)} tool(s) cannot be modelled and were left out: "
             + ", ".join(f"T{n}" for n in sorted(refused))
         )
-    return ToolLibrary(tools, warnings=tuple(warnings), refused=refused, source=file)
+    return ToolLibrary(tools, warnings=tuple(warnings), refused=refused, source=file, entries=tuple(entries))
 
 
 def _read_tools_archive(path: Path) -> ToolLibrary:

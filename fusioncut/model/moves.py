@@ -308,12 +308,16 @@ def _spiral_gap(arc: ArcMove, t0: float, t1: float, piece: ArcMove) -> float:
 @dataclass(frozen=True)
 class Toolpath:
     """What a reader produced: moves in program order (machine frame, mm), the tools they use
-    (keyed by tool number), and the reader's warnings (each naming ``file:line``)."""
+    (keyed by tool number), and the reader's warnings (each naming ``file:line``).
+
+    ``program_tools``: the tools the program describes itself (G-code tool comments) when the reader
+    was given tools that replace them in ``tools``; ``None`` when ``tools`` are the program's own."""
 
     moves: tuple[Move, ...]
     tools: dict[int, MillingTool] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
     source: str = "<memory>"
+    program_tools: dict[int, MillingTool] | None = None
 
     def translated(self, v: Point) -> Toolpath:
         return replace(self, moves=tuple(m.translated(v) for m in self.moves))

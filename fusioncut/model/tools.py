@@ -463,3 +463,30 @@ TOOL_KINDS: dict[str, type[MillingTool]] = {
     cls.kind: cls  # type: ignore[misc]
     for cls in (FlatEndMill, BallEndMill, BullNoseEndMill, TaperedEndMill, ChamferMill, Drill, AptCutter)
 }
+
+
+def describe(tool: MillingTool) -> str:
+    """A tool's cutting geometry in a few words (mm, degrees), for messages: ``flat D=3.175``."""
+    parts = [f"{tool.kind} D={tool.diameter:.6g}"]
+    for attr, word in (("corner_radius", "CR"), ("taper_angle", "taper"), ("tip_diameter", "tip"),
+                       ("point_angle", "point")):
+        value = getattr(tool, attr, None)
+        if value:
+            parts.append(f"{word}={value:.6g}")
+    return " ".join(parts)
+
+
+def cutting_shape_difference(a: MillingTool, b: MillingTool, tolerance: float = 5e-4) -> float:
+    """The largest difference (mm) between the radii of two tools' cutting parts, over the height
+    both have flutes (0 when they agree: the families may differ, e.g. a 118 degree drill and a
+    pointed chamfer mill of half-angle 59). Sampled at every profile vertex and at 256 even steps;
+    ``tolerance`` (mm) is what a post's rounding of the sizes (3 decimals) may account for, and
+    differences below it are reported as 0."""
+    h = min(a.flute_length, b.flute_length)
+    zs = {h * k / 256 for k in range(257)}
+    for tool in (a, b):
+        for s in tool.cutting_profile():
+            zs.update(z for z in (s.start[1], s.end[1]) if 0 <= z <= h)
+    pa, pb = a.profile(), b.profile()
+    worst = max(abs(pa.radius_at(z) - pb.radius_at(z)) for z in zs)
+    return worst if worst > tolerance else 0.0

@@ -154,7 +154,40 @@ def test_duplicate_numbers_keep_the_first(tmp_path):
     p.write_text(json.dumps(doc))
     lib = read_tool_library(p)
     assert isinstance(lib[1], FlatEndMill)
-    assert any("T1 already defined by data[0]" in w for w in lib.warnings)
+    assert any("T1 is the number of 2 tools; data[0] 'flat end mill' is kept as T1, not data[1] 'ball end mill'"
+               in w for w in lib.warnings)
+
+
+def test_library_of_42_tools_numbered_t1_warns_once_and_serves_each_by_name_or_id(tmp_path):
+    """Issue 23 item 6: a Fusion library whose 42 tools all say T1 keeps one; the warning says so
+    once, naming the others, and every one of them can be picked by name or id."""
+    data = [fusion_entry("flat end mill", 1, {"DC": 1 + k / 4, "LCF": 10}, description=f"{1 + k / 4:g} mm flat")
+            for k in range(42)]
+    for k, entry in enumerate(data):
+        entry["guid"] = f"guid-{k:02d}"
+    data.append({**fusion_entry("ball end mill", 1, {"DC": 2, "LCF": 6, "RE": 1}, description="unnumbered ball"),
+                 "post-process": {"comment": ""}, "guid": "guid-ball"})
+    data.append(fusion_entry("ball end mill", 5, {"DC": 3, "LCF": 6, "RE": 1.5}, description="1 mm flat"))
+    data.append(fusion_entry("thread mill", 6, {"DC": 3, "LCF": 6}, description="threads"))
+    p = tmp_path / "all_t1.tools"
+    with zipfile.ZipFile(p, "w") as zf:
+        zf.writestr("tools.json", json.dumps({"data": data}))
+    lib = read_tool_library(p)
+    assert lib[1].diameter == 1.0 and lib[1].name == "1 mm flat"
+    dup = [w for w in lib.warnings if "T1 is the number of" in w]
+    assert len(dup) == 1 and "of 42 tools" in dup[0] and "data[1] '1.25 mm flat'" in dup[0] and "36 more" in dup[0]
+    assert lib.pick(name="  3.5 MM FLAT ").diameter == 3.5
+    assert lib.pick(id="guid-41").diameter == 11.25
+    assert isinstance(lib.pick(name="unnumbered ball"), BallEndMill)
+    assert any("data[42]: tool 'unnumbered ball' has no post-process number" in w for w in lib.warnings)
+    with pytest.raises(ToolDefinitionError, match=r"all_t1\.tools: 2 tools have name '1 mm flat' in the tool "
+                                                  r"library: data\[0\] \(id guid-00\), data\[43\] \(id 0{8}-0{4}-0{4}-0{4}-0{11}5\); "
+                                                  r"pick one by its id"):
+        lib.pick(name="1 mm flat")
+    with pytest.raises(ToolDefinitionError, match=r"no tool with id 'guid-99'"):
+        lib.pick(id="guid-99")
+    with pytest.raises(ToolDefinitionError, match=r"data\[44\]: tool threads \(T6\) is a thread mill"):
+        lib.pick(name="threads")
 
 
 # ---------------------------------------------------------------------------------------------------
