@@ -229,6 +229,10 @@ def _toolpath_report(path: Path, fmt: str, tp: Toolpath, units: list[str], note:
     totals["total"] = len(tp.moves)
     tools = [_tool_entry(n, t, n in used) for n, t in sorted(tp.tools.items())]
     warnings = list(getattr(library, "warnings", ())) + list(tp.warnings)
+    if library is not None:  # the library's tools replaced the program's: say where they disagree
+        from fusioncut.io.tool_sources import library_disagreements
+
+        warnings += library_disagreements(tp, library)
     report = {
         "file": str(path), "format": fmt, "file_units": units, "units_note": note, "output_units": "mm, mm/min",
         "tools": tools, "refused_tools": _refused(library), "operations": list(ops.values()), "moves": totals,

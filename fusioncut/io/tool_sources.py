@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from fusioncut.io.job import ToolSpec
     from fusioncut.io.tool_library import ToolLibrary
 
-__all__ = ["ToolSource", "job_tools", "program_first_tools", "resolve_tools"]
+__all__ = ["ToolSource", "job_tools", "library_disagreements", "program_first_tools", "resolve_tools"]
 
 log = logging.getLogger("fusioncut.run")
 
@@ -59,6 +59,35 @@ def _named(kind: str, tool: MillingTool, n: int, library: ToolLibrary | None, fi
     if kind == "library":
         return f"the tool library ({tool.source})" if tool.source else f"the tool library ({library.source}: T{n})"  # type: ignore[union-attr]
     return f"the program ({tool.source})" if tool.source else f"the program (first used at {first_use.source})"
+
+
+def _disagreement(n: int, m: Move, chosen: tuple[str, MillingTool], other: tuple[str, MillingTool],
+                  library: ToolLibrary | None, hint: str) -> list[str]:
+    """The warning (a list of 0 or 1) when ``other`` describes T``n`` (first used by ``m``) with
+    another cutting part than the ``chosen`` definition; each is (source kind, tool)."""
+    gap = cutting_shape_difference(chosen[1], other[1])
+    if gap == 0:
+        return []
+    return [f"{m.source}: T{n}: {_named(*chosen, n, library, m)} says {describe(chosen[1])}, "
+            f"{_named(*other, n, library, m)} says {describe(other[1])} (cutting parts up to "
+            f"{gap:.4g} mm apart in radius); using {_OWNER[chosen[0]]}{hint}"]
+
+
+def library_disagreements(tp: Toolpath, library: ToolLibrary) -> list[str]:
+    """For a toolpath read with ``library``'s tools (as ``fusioncut inspect --tools`` does): a
+    warning for every T number the moves use whose library tool disagrees with the program's own."""
+    program = tp.program_tools if tp.program_tools is not None else {}
+    out: list[str] = []
+    seen: set[int] = set()
+    for m in tp.moves:
+        n = m.tool
+        if n is None or n in seen:
+            continue
+        seen.add(n)
+        if n in library and n in program:
+            out += _disagreement(n, m, ("library", library[n]), ("program", program[n]), library,
+                                 "; a job chooses with 'tool_source' or its 'tools'")
+    return out
 
 
 def resolve_tools(moves: list[Move], job: dict[int, MillingTool], library: ToolLibrary | None,
@@ -104,15 +133,10 @@ def resolve_tools(moves: list[Move], job: dict[int, MillingTool], library: ToolL
         for other_kind, other in others:
             if kind == "job" and other_kind == "library":
                 continue  # the job overrides its own library on purpose; the program may still disagree
-            gap = cutting_shape_difference(chosen, other)
-            if gap > 0:
-                hint = ("" if kind == "job" else
-                        f"; the job's tool_source {tool_source!r} chose it (set 'tool_source' or give T{n} in "
-                        "the job's 'tools' to choose)")
-                warnings.append(
-                    f"{m.source}: T{n}: {_named(kind, chosen, n, library, m)} says {describe(chosen)}, "
-                    f"{_named(other_kind, other, n, library, m)} says {describe(other)} (cutting parts up to "
-                    f"{gap:.4g} mm apart in radius); using {_OWNER[kind]}{hint}")
+            warnings += _disagreement(n, m, (kind, chosen), (other_kind, other), library,
+                                      "" if kind == "job" else
+                                      f"; the job's tool_source {tool_source!r} chose it (set 'tool_source' or "
+                                      f"give T{n} in the job's 'tools' to choose)")
     default_tool = None
     if untooled is not None:
         lower, higher = (program, library or {}) if tool_source == "library" else (library or {}, program)

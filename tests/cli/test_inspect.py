@@ -127,7 +127,7 @@ def test_fusion_tool_library_json(tmp_path):
     lib.write_text(json.dumps({"version": 1, "data": [
         {"type": "ball end mill", "unit": "inches", "description": "1/4 ball",
          "geometry": {"DC": 0.25, "LCF": 0.75, "NOF": 2}, "post-process": {"number": 4}},
-        {"type": "drill", "unit": "millimeters", "geometry": {"DC": 5}, "post-process": {"number": 9}},
+        {"type": "right tap", "unit": "millimeters", "geometry": {"DC": 5}, "post-process": {"number": 9}},
     ]}))
     r = inspect_json(str(lib))
     assert r["format"] == "Fusion tool library" and r["file_units"] == ["inch", "mm"]

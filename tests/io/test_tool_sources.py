@@ -209,3 +209,16 @@ def test_job_tool_kinds_drill_and_neck():
                     shank_diameter=6, overall_length=40).build()
     assert neck.profile().radius_at(15) == pytest.approx(1.9)
     assert Job(stock=StockSpec(kind="infer"), toolpaths=["p.nc"]).tool_source == "library"
+
+
+def test_inspect_with_a_library_reports_the_disagreement(tmp_path):
+    from fusioncut.cli.inspect import inspect_file
+
+    (tmp_path / "prog.nc").write_text(PROGRAM)
+    (tmp_path / "lib.json").write_text(json.dumps(LIBRARY))
+    report = inspect_file(tmp_path / "prog.nc", tmp_path / "lib.json")
+    [w] = [w for w in report["warnings"] if ": T2: " in w]
+    assert w.startswith(f"{tmp_path / 'prog.nc'}:6:1: T2: the tool library (") and "says flat D=3.175" in w
+    agreeing = {"data": [LIBRARY["data"][1]]}
+    (tmp_path / "lib.json").write_text(json.dumps(agreeing))
+    assert not any(": T2: " in w for w in inspect_file(tmp_path / "prog.nc", tmp_path / "lib.json")["warnings"])
