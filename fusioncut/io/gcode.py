@@ -7,7 +7,7 @@ G28/G30, inverse time feed). The tests compare our moves with the canonical outp
 
 Public API
 ----------
-``read_gcode(path, *, tools=None, strict=False, arc_centers="auto") -> Toolpath`` and
+``read_gcode(path, *, tools=None, strict=False, arc_centers="auto", max_moves=1_000_000) -> Toolpath`` and
 ``parse_gcode_text(text, *, source="<memory>", ...)``; :class:`GCodeInterpreter` runs a program
 block by block (``step()``, iteration, ``execute(line)`` for single MDI lines) with the modal state
 inspectable after each block as a frozen :class:`ModalState`.
@@ -65,8 +65,17 @@ Rules worth knowing
   records them instead, for comparisons with rs274).
 * Zero-length moves (LinuxCNC emits e.g. ``G0`` without axes, or re-positioning moves) are kept by
   the interpreter but dropped by :func:`read_gcode`, which counts them in one warning.
-* ``/`` block delete lines are skipped (the block delete switch is on). A ``%`` line before the
-  first block opens the program and any later ``%`` line ends it; ``M2``/``M30`` end it too.
+* ``/`` block delete lines are skipped (the block delete switch is on). A lone ``%`` line before the
+  first block opens the program and a later lone ``%`` ends it; ``M2``/``M30`` end it too. Lines
+  with words after the end are not read, and a warning names the line where reading stopped and
+  counts them (:mod:`fusioncut.io.gcode_end`). A ``%`` line with text after the ``%`` (a hobby
+  post's ``% vfd enable``) neither opens nor ends the program: LinuxCNC refuses it ("Bad character
+  '%' used"), and so does ``strict``; otherwise it is ignored with a warning. A program that yields
+  no moves gets a warning saying why.
+* Work budget: ``max_moves`` (default 1,000,000; ``None`` or 0 for no limit) bounds the moves a
+  program expands to, an arc's extra ``P`` turns counting as moves, and the blocks it executes (2
+  per move and 100,000 more); an arc takes at most 1,000 turns. Repeat loops and blocks that expand are checked
+  before they expand (:mod:`fusioncut.io.gcode_budget`); the error names ``file:line`` and the count.
 * O-word subroutines are those defined in the same file (``O<name>`` files on a search path are not
   looked up); calls nest at most 10 deep, as in LinuxCNC.
 * Strictness: unknown words, words no command in the block uses, unknown or unsupported G and M codes
@@ -87,7 +96,9 @@ from typing import Iterator, Literal, Mapping
 
 from fusioncut.errors import InputError, SourceLocation, ToolDefinitionError
 from fusioncut.io import gcode_comp
+from fusioncut.io.gcode_budget import DEFAULT_MAX_MOVES, MAX_ARC_TURNS, MoveBudget, may_leave_early
 from fusioncut.io.gcode_comp import CompState
+from fusioncut.io.gcode_end import no_moves_warning, stop_warning
 from fusioncut.io.gcode_parse import Block, ParamRef, _param_index, evaluate, parse_line
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move, Point, Toolpath
 from fusioncut.model.tools import (
@@ -114,9 +125,10 @@ SPIRAL_REL_TOL = 0.001
 RADIUS_TOL_INCH = 0.00005
 # chord tolerance when flattening G5/G5.1 splines, mm
 SPLINE_TOLERANCE_MM = 0.001
-# safety limits against runaway programs (an L or P word of 1e9, an endless O-word loop)
+# safety limits against runaway programs (an L or P word of 1e9, a repeat count of 1e15); the
+# program's total of moves and blocks is bounded by its MoveBudget (gcode_budget)
 MAX_MOVES_PER_BLOCK = 100_000
-MAX_BLOCKS_EXECUTED = 20_000_000
+MAX_REPEAT_COUNT = 1_000_000_000
 MAX_CALL_DEPTH = 10  # LinuxCNC's INTERP_SUB_ROUTINE_LEVELS
 MAX_COORDINATE = 1e12  # mm or degrees; beyond this a program is broken, and floats lose their meaning
 
@@ -215,6 +227,8 @@ class _Frame:
     saved: list[float]
     locals: dict[str, float] = field(default_factory=dict)
     repeats: dict[int, int] = field(default_factory=dict)
+    # repeat line -> (moves, blocks) spent when its first pass began; checked when that pass ends
+    first_pass: dict[int, tuple[int, int]] = field(default_factory=dict)
 
 
 @dataclass
@@ -272,6 +286,7 @@ class GCodeInterpreter:
         arc_centers: ArcCenters = "auto",
         allow_rotary: bool = False,
         tool_lengths: Mapping[int, float] | None = None,
+        max_moves: int | None = DEFAULT_MAX_MOVES,
     ):
         if arc_centers not in ("auto", "incremental", "absolute"):
             raise ValueError(f"arc_centers must be 'auto', 'incremental' or 'absolute', not {arc_centers!r}")
@@ -289,6 +304,11 @@ class GCodeInterpreter:
         self._ended = False
         self._executed = 0
         self._step_moves: list[Move] = []
+        self.budget = MoveBudget(max_moves, self.source)
+        self._move_room = self.budget.room(0)  # emitting a move with this many emitted passes the budget
+        self._block_limit = self.budget.max_blocks or 1 << 62
+        self._furthest = -1  # index of the furthest program line executed
+        self._stop: tuple[int, str] | None = None  # (line, what) of an M2/M30/% that ended the program
         # --- modal state (internal units: mm, mm/min, degrees)
         self.pos = [0.0] * 6  # machine frame, tool tip
         self.inch = False
@@ -388,7 +408,11 @@ class GCodeInterpreter:
             block = self._block(i)
             self._index = i + 1
             if block.percent:
+                if block.percent_text:
+                    self._stray_percent(block)
+                    continue
                 if self._program_started or self._percent_open:
+                    self._stopped(i, "the closing %")
                     return self._finish()
                 self._percent_open = True
                 continue
@@ -396,11 +420,10 @@ class GCodeInterpreter:
                 continue
             self._program_started = True
             self._executed += 1
-            if self._executed > MAX_BLOCKS_EXECUTED:
-                raise InputError(
-                    f"more than {MAX_BLOCKS_EXECUTED} blocks executed: endless O-word loop?",
-                    SourceLocation(self.source, block.line, 1),
-                )
+            if self._executed > self._block_limit:
+                self.budget.check_blocks(self._executed, SourceLocation(self.source, block.line, 1))
+            if i > self._furthest:
+                self._furthest = i
             self._step_moves = []
             self._line = block.line
             if block.oword is not None:
@@ -457,6 +480,8 @@ class GCodeInterpreter:
             if dropped:
                 warnings.append(f"{self.source}: dropped {dropped} zero-length move{'s' if dropped != 1 else ''}")
             moves = kept
+        if not moves:
+            warnings.append(no_moves_warning(self.source, self._stop, bool(self.moves), self._lines))
         tools = self.user_tools if self.user_tools is not None else self._tools_from_comments(warnings)
         # tools given replace the comments' (unusable comments then go unreported); keep the program's own
         program = self._tools_from_comments([]) if self.user_tools is not None else None
@@ -470,6 +495,26 @@ class GCodeInterpreter:
             b = parse_line(self._lines[i], i + 1, self.source)
             self._blocks[i] = b
         return b
+
+    def _stopped(self, index: int, what: str) -> None:
+        """The program ends at line ``index + 1`` by ``what``: warn when lines with words remain unread."""
+        line = index + 1
+        self._stop = (line, what)
+        after = max(index, self._furthest) + 1
+        furthest = self._furthest + 1 if self._furthest > index else 0
+        warning = stop_warning(f"{self.source}:{line}", what, self._lines, after, furthest)
+        if warning is not None:
+            self.warnings.append(warning)
+
+    def _stray_percent(self, block: Block) -> None:
+        """A ``%`` line with text after it: not a program delimiter (LinuxCNC refuses the line with
+        "Bad character '%' used"); strict: the same refusal, lenient: ignored with a warning."""
+        self._line = block.line
+        col = len(block.text) - len(block.text.lstrip()) + 1
+        text = block.text.strip()
+        shown = text if len(text) <= 40 else text[:37] + "..."
+        self._unsupported(f"'{shown}': a % line with text after the % is not a program start or end "
+                          "(only a lone % is)", col)
 
     def _finish(self) -> list[Move] | None:
         """End of the program text: release held compensated moves (returned as a last step)."""
@@ -492,6 +537,8 @@ class GCodeInterpreter:
             if not s:
                 continue
             if s[0] == "%":
+                if s[1:].strip():
+                    continue  # not a delimiter (see _stray_percent)
                 if started:
                     break
                 started = True
@@ -612,12 +659,17 @@ class GCodeInterpreter:
         elif kw in ("endwhile", "endrepeat"):
             self._index = flow.pair[i]
         elif kw == "repeat":
-            reps = self._frames[-1].repeats
+            frame = self._frames[-1]
+            reps = frame.repeats
             if i not in reps:
                 n = args[0]
-                if n < 0 or n != math.floor(n) or n > MAX_BLOCKS_EXECUTED:
+                if n < 0 or n != math.floor(n) or n > MAX_REPEAT_COUNT:
                     raise InputError(f"repeat count must be a whole number >= 0, got {n:g}", where)
                 reps[i] = int(n)
+                if n > 1:
+                    frame.first_pass[i] = (len(self.moves) + self.budget.extra_turns, self._executed)
+            elif i in frame.first_pass:
+                self._check_repeat(i, frame, flow.pair[i], where)
             if reps[i] <= 0:
                 del reps[i]
                 self._index = flow.pair[i] + 1
@@ -632,12 +684,26 @@ class GCodeInterpreter:
             start_kw = self._block(start).oword.keyword  # type: ignore[union-attr]
             if kw == "break":
                 self._frames[-1].repeats.pop(start, None)
+                self._frames[-1].first_pass.pop(start, None)
                 self._index = end + 1
             else:
                 # continue: go to the line that tests the loop (the while of a do-while, the while
                 # of a while loop, the endrepeat of a repeat)
                 self._index = end if start_kw in ("do", "repeat") else start
         # "do" and "endif" need nothing
+
+    def _check_repeat(self, i: int, frame: _Frame, end: int, where: SourceLocation) -> None:
+        """The first pass of the repeat loop at line index ``i`` has run: refuse the loop if the passes
+        still to come would pass the budget, unless its body can leave early (break, return, M2/M30),
+        which only the running count can judge."""
+        moves0, blocks0 = frame.first_pass.pop(i)
+        spent = (len(self.moves), self._executed)
+        first = (len(self.moves) + self.budget.extra_turns - moves0, self._executed - blocks0)
+        try:
+            self.budget.check_repeat(spent, first, frame.repeats[i], frame.repeats[i] + 1, where)
+        except InputError:
+            if not may_leave_early(self._block(j) for j in range(i + 1, end)):
+                raise
 
     def _loop_around(self, i: int, label: str) -> tuple[int, int]:
         assert self._flow is not None
@@ -857,6 +923,8 @@ class GCodeInterpreter:
             self._pending_operation = None
         mv = LinearMove(start=(pos[0], pos[1], pos[2]), end=(end[0], end[1], end[2]), feed=feed,
                         spindle_rpm=self.rpm, tool=self.tool, operation=self.operation, source=loc, rapid=rapid)
+        if len(self.moves) >= self._move_room:
+            raise self.budget.refuse("at this block", loc)
         self.moves.append(mv)
         self._step_moves.append(mv)
         self.rotary_ends.append((end[3], end[4], end[5]))
@@ -1094,6 +1162,7 @@ class GCodeInterpreter:
                 gcode_comp.flush(self)
             if stop[0] in (2, 30):
                 self._end_program()
+                self._stopped(block.line - 1, f"M{stop[0]}")
 
         if not skip_unused_check:
             unused = [k for k in vals if k not in w.used]
@@ -1362,8 +1431,10 @@ class GCodeInterpreter:
                 raise InputError("5-axis / rotary motion not supported yet", loc)
 
     def _budget(self, n: int, loc: SourceLocation) -> None:
+        """Refuse a block about to make ``n`` moves when one block may not, or the program may not."""
         if n > MAX_MOVES_PER_BLOCK:
             raise InputError(f"one block would make {n} moves (more than {MAX_MOVES_PER_BLOCK})", loc)
+        self.budget.check(len(self.moves), n, f"this block makes {n:,}", loc)
 
     def _linear(self, end: list[float], rapid: bool, loc: SourceLocation, w: _Words | None = None) -> LinearMove:
         p = self.pos
@@ -1389,6 +1460,8 @@ class GCodeInterpreter:
             self._pending_operation = None
 
     def _push(self, mv: Move, end: list[float]) -> None:
+        if len(self.moves) >= self._move_room:
+            raise self.budget.refuse("at this block", mv.source)
         self.moves.append(mv)
         self._step_moves.append(mv)
         self.rotary_ends.append((end[3], end[4], end[5]))
@@ -1407,9 +1480,16 @@ class GCodeInterpreter:
         p_turns = w.get("p")
         turns = 0
         if p_turns is not None:
-            if p_turns < 1 or p_turns != math.floor(p_turns) or p_turns > MAX_MOVES_PER_BLOCK:
+            if p_turns < 1 or p_turns != math.floor(p_turns):
                 raise InputError(f"arc P (turns) must be a whole number >= 1, got P{p_turns:g}", loc)
+            if p_turns > MAX_ARC_TURNS:
+                raise InputError(f"arc P{p_turns:g}: more than {MAX_ARC_TURNS:,} turns in one block", loc)
             turns = int(p_turns) - 1
+            if turns:
+                # each extra turn counts as a move of the budget (see gcode_budget)
+                self.budget.check(len(self.moves), turns + 1, f"an arc of {turns + 1:,} turns", loc)
+                self.budget.extra_turns += turns
+                self._move_room = self.budget.room(0)
         if self._comp is not None:
             gcode_comp.arc(self, end, cw, turns, w, loc)
             return
@@ -1687,9 +1767,11 @@ def parse_gcode_text(
     tools: dict[int, MillingTool] | None = None,
     strict: bool = False,
     arc_centers: ArcCenters = "auto",
+    max_moves: int | None = DEFAULT_MAX_MOVES,
 ) -> Toolpath:
     """Interpret G-code text into a :class:`Toolpath` (mm, machine frame, tool tip); see the module doc."""
-    interp = GCodeInterpreter(text, source=source, tools=tools, strict=strict, arc_centers=arc_centers)
+    interp = GCodeInterpreter(text, source=source, tools=tools, strict=strict, arc_centers=arc_centers,
+                              max_moves=max_moves)
     interp.run()
     return interp.toolpath()
 
@@ -1700,6 +1782,7 @@ def read_gcode(
     tools: dict[int, MillingTool] | None = None,
     strict: bool = False,
     arc_centers: ArcCenters = "auto",
+    max_moves: int | None = DEFAULT_MAX_MOVES,
 ) -> Toolpath:
     """Read and interpret a G-code file into a :class:`Toolpath`; errors name ``file:line:column``."""
     p = Path(path)
@@ -1712,4 +1795,5 @@ def read_gcode(
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         text = raw.decode("latin-1")
-    return parse_gcode_text(text, source=str(path), tools=tools, strict=strict, arc_centers=arc_centers)
+    return parse_gcode_text(text, source=str(path), tools=tools, strict=strict, arc_centers=arc_centers,
+                            max_moves=max_moves)

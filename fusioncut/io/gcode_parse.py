@@ -86,7 +86,8 @@ class Block:
     line: int
     text: str
     deleted: bool = False
-    percent: bool = False
+    percent: bool = False  # the line starts with "%"
+    percent_text: str = ""  # what follows that "%" (stripped); a program delimiter has none
     g: list[tuple[Value, int]] = field(default_factory=list)
     m: list[tuple[Value, int]] = field(default_factory=list)
     words: dict[str, tuple[Value, int]] = field(default_factory=dict)
@@ -145,8 +146,9 @@ def parse_line(text: str, line: int, file: str) -> Block:
     if not s:
         return block
     if s[0] == "%":
-        # program delimiter; LinuxCNC ignores what follows it on the line
+        # a "%" alone is a program delimiter (LinuxCNC); the interpreter decides what text after it means
         block.percent = True
+        block.percent_text = s[1:].strip()
         return block
     body = text
     offset = 0
