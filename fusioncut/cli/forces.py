@@ -20,6 +20,7 @@ from typing import Any, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
@@ -48,8 +49,8 @@ def calibrate(
     tests = read_slot_tests_csv(csv_file)
     coeffs, fit = calibrate_from_slot_tests(tests.c, tests.fx, tests.fy, tests.fz, axial_depth, flutes)
 
-    table = Table(title=f"Cutting coefficients from {fit.tests} slot tests ({csv_file.name}, a = {axial_depth:g} mm, "
-                  f"{flutes} flutes)")
+    table = Table(title=f"Cutting coefficients from {fit.tests} slot tests ({escape(csv_file.name)}, "
+                  f"a = {axial_depth:g} mm, {flutes} flutes)")
     table.add_column("coefficient")
     table.add_column("value", justify="right")
     table.add_column("std. error", justify="right")
@@ -194,7 +195,7 @@ def forces(
         plot_forces(table, out=results_dir / "forces.png")
         wrote.append("forces.png")
     known = table[table["resultant_peak_N"].notna()]
-    summary = Table(title=f"Cutting forces ({s.coefficients.name or material}; slice height {s.dz:g} mm)")
+    summary = Table(title=f"Cutting forces ({escape(s.coefficients.name or material)}; slice height {s.dz:g} mm)")
     for col in ("CLs with forces", "max |F| peak N", "mean |F| mean N", "max torque N*m", "max power W",
                 "max chip mm"):
         summary.add_column(col, justify="right")
@@ -205,7 +206,7 @@ def forces(
     unknown = int(((table["status"] != "rapid") & table["resultant_peak_N"].isna()).sum())
     if unknown:
         console.print(f"[yellow]note:[/] {unknown} feed CL(s) without forces (failed, or no feed / spindle speed)")
-    console.print(f"wrote {', '.join(wrote)} in {results_dir}", highlight=False)
+    console.print(f"wrote {', '.join(wrote)} in {escape(str(results_dir))}", highlight=False)
 
 
 def _tool_info(t: Any) -> dict[str, Any]:
@@ -316,8 +317,9 @@ def advise(
     t = advice.table
     prog, adv_f = t["programmed_feed_mm_min"], t["advised_feed_mm_min"]
     unreachable = int(t["note"].str.contains("unreachable", regex=False).sum())
-    console.print(f"feed advice for {program.name}: {len(t)} CLs; feed time {advice.cycle_time_s('programmed'):.1f} s "
-                  f"programmed -> {advice.cycle_time_s():.1f} s advised; {int((adv_f < prog).sum())} CLs slower, "
+    console.print(f"feed advice for {escape(program.name)}: {len(t)} CLs; "
+                  f"feed time {advice.cycle_time_s('programmed'):.1f} s programmed -> {advice.cycle_time_s():.1f} s "
+                  f"advised; {int((adv_f < prog).sum())} CLs slower, "
                   f"{int((adv_f > prog).sum())} faster; {advice.feed_changes()} feed changes; "
                   f"{len(result.changed_lines)} lines changed", highlight=False)
     counts = t["reason"].value_counts()
@@ -326,8 +328,8 @@ def advise(
         console.print(f"[yellow]note:[/] {unreachable} CL(s) exceed the limit at every feed down to --min-feed "
                       f"({advice.limit.min_feed:g} mm/min): note 'unreachable' in the advice table", highlight=False)
     for note in result.notes[:10]:
-        console.print(f"[yellow]note:[/] {note}", highlight=False)
-    console.print(f"wrote {out}, {out.stem}_advice.csv/.parquet, {plot.name}", highlight=False)
+        console.print(f"[yellow]note:[/] {escape(note)}", highlight=False)
+    console.print(escape(f"wrote {out}, {out.stem}_advice.csv/.parquet, {plot.name}"), highlight=False)
 
 
 def _check_same_program(s: _Setup, rows: list[int], program: Path) -> None:

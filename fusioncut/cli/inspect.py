@@ -24,10 +24,12 @@ from typing import Any, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
 from fusioncut.errors import FusionCutError, InputError, SourceLocation
+from fusioncut.io.gcode_budget import DEFAULT_MAX_MOVES
 from fusioncut.model import BallEndMill, MillingTool, Move, Toolpath
 
 console = Console()
@@ -41,8 +43,10 @@ MAX_WARNINGS_SHOWN = 20  # the table view; --json lists them all
 # reading
 
 
-def inspect_file(path: Path, tools_path: Path | None = None, strict: bool = False) -> dict[str, Any]:
-    """The inspection report of ``path`` (see the module docstring); raises the readers' errors."""
+def inspect_file(path: Path, tools_path: Path | None = None, strict: bool = False,
+                 max_moves: int | None = DEFAULT_MAX_MOVES) -> dict[str, Any]:
+    """The inspection report of ``path`` (see the module docstring); raises the readers' errors.
+    ``max_moves`` bounds what a G-code program may expand to (:mod:`fusioncut.io.gcode_budget`)."""
     from fusioncut.io.tool_library import read_tool_library
 
     library = read_tool_library(tools_path) if tools_path is not None else None
@@ -50,7 +54,7 @@ def inspect_file(path: Path, tools_path: Path | None = None, strict: bool = Fals
     if suffix in (".tbl", ".tools"):
         return _library_report(path, read_tool_library(path))
     if suffix == ".camotics":
-        return _camotics_report(path, library, strict)
+        return _camotics_report(path, library, strict, max_moves)
     if suffix == ".json":
         doc = _peek_json(path)
         if isinstance(doc, dict) and "data" in doc and "toolpath" not in doc:
@@ -67,7 +71,7 @@ def inspect_file(path: Path, tools_path: Path | None = None, strict: bool = Fals
         tp = read_apt(path)
         units, note = _apt_units(path)
         return _toolpath_report(path, "APT / CLSF", tp, units, note, library)
-    tp, units = _read_gcode(path, library, strict)
+    tp, units = _read_gcode(path, library, strict, max_moves)
     return _toolpath_report(path, "G-code (RS274/NGC)", tp, units,
                             "as programmed by G20/G21; mm where the program states neither", library)
 
@@ -100,7 +104,8 @@ def _apt_units(path: Path) -> tuple[list[str], str]:
     return units, "from UNITS/"
 
 
-def _read_gcode(path: Path, tools: dict[int, MillingTool] | None, strict: bool) -> tuple[Toolpath, list[str]]:
+def _read_gcode(path: Path, tools: dict[int, MillingTool] | None, strict: bool,
+                max_moves: int | None) -> tuple[Toolpath, list[str]]:
     """Read G-code as :func:`fusioncut.io.gcode.read_gcode` does, noting the units of every block
     that moves (a program may switch between G20 and G21)."""
     from fusioncut.io.gcode import GCodeInterpreter
@@ -110,7 +115,7 @@ def _read_gcode(path: Path, tools: dict[int, MillingTool] | None, strict: bool) 
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         text = raw.decode("latin-1")
-    interp = GCodeInterpreter(text, source=str(path), tools=tools or None, strict=strict)
+    interp = GCodeInterpreter(text, source=str(path), tools=tools or None, strict=strict, max_moves=max_moves)
     units: list[str] = []
     # as in GCodeInterpreter.run: the moves are acyclic, so the cyclic collector only costs time
     was_enabled = gc.isenabled()
@@ -243,7 +248,7 @@ def _toolpath_report(path: Path, fmt: str, tp: Toolpath, units: list[str], note:
     return report
 
 
-def _camotics_report(path: Path, library: Any, strict: bool) -> dict[str, Any]:
+def _camotics_report(path: Path, library: Any, strict: bool, max_moves: int | None) -> dict[str, Any]:
     from fusioncut.io.tool_library import read_camotics_project
 
     project = read_camotics_project(path)
@@ -255,7 +260,7 @@ def _camotics_report(path: Path, library: Any, strict: bool) -> dict[str, Any]:
     for prog in project.programs:
         entry: dict[str, Any] = {"file": str(prog), "read": False}
         if prog.is_file() and prog.suffix.lower() != ".tpl":
-            tp, prog_units = _read_gcode(prog, tools, strict)
+            tp, prog_units = _read_gcode(prog, tools, strict, max_moves)
             moves.extend(tp.moves)
             warnings.extend(tp.warnings)
             units += [u for u in prog_units if u not in units]
@@ -283,7 +288,8 @@ def _fmt(v: float | None, digits: int = 4) -> str:
 
 
 def _print_report(r: dict[str, Any]) -> None:
-    console.print(f"[bold]{r['file']}[/]: {r['format']}", highlight=False)
+    # names from the files (paths, tools, operations, reasons) are escaped: "[d2.4mm]" is no markup
+    console.print(f"[bold]{escape(r['file'])}[/]: {r['format']}", highlight=False)
     console.print(f"units in the file: {', '.join(r['file_units'])} ({r['units_note']}); "
                   f"shown here after reading, in {r['output_units']}", highlight=False)
     if r["tools"]:
@@ -295,7 +301,7 @@ def _print_report(r: dict[str, Any]) -> None:
             t.add_column("used")
         for x in r["tools"]:
             row = [str(x["number"]), x["kind"], _fmt(x["diameter_mm"]), _fmt(x["flute_length_mm"]),
-                   _fmt(x["corner_radius_mm"]), _fmt(x["taper_angle_deg"]), str(x["flutes"]), x["name"]]
+                   _fmt(x["corner_radius_mm"]), _fmt(x["taper_angle_deg"]), str(x["flutes"]), escape(x["name"])]
             if x["used"] is not None:
                 row.append("yes" if x["used"] else "")
             t.add_row(*row)
@@ -305,7 +311,7 @@ def _print_report(r: dict[str, Any]) -> None:
         t.add_column("T", justify="right")
         t.add_column("reason")
         for x in r["refused_tools"]:
-            t.add_row(str(x["number"]), x["reason"])
+            t.add_row(str(x["number"]), escape(x["reason"]))
         console.print(t)
     if r["moves"] is not None:
         t = Table(title="operations (moves by type; feeds mm/min)")
@@ -313,7 +319,7 @@ def _print_report(r: dict[str, Any]) -> None:
             t.add_column(col, justify="left" if col in ("operation", "tools") else "right")
         for op in r["operations"]:
             mv, fr = op["moves"], op["feed_mm_min"]
-            t.add_row(op["name"] or "(none)", ", ".join(f"T{n}" for n in op["tools"]),
+            t.add_row(escape(op["name"]) or "(none)", ", ".join(f"T{n}" for n in op["tools"]),
                       *(str(mv[k]) for k in MOVE_KINDS), str(mv["total"]),
                       f"{_fmt(fr[0])} - {_fmt(fr[1])}" if fr else "-")
         mv = r["moves"]
@@ -339,7 +345,7 @@ def _print_report(r: dict[str, Any]) -> None:
                       highlight=False)
     for p in r.get("programs", []):
         what = f"{p['moves']} moves" if p["read"] else "not read (missing or not G-code)"
-        console.print(f"program {p['file']}: {what}", highlight=False)
+        console.print(f"program {escape(p['file'])}: {what}", highlight=False)
     if r["warnings"]:
         console.print(f"[yellow]{len(r['warnings'])} warning(s):[/]")
         for w in r["warnings"][:MAX_WARNINGS_SHOWN]:
@@ -356,10 +362,13 @@ def register(app: typer.Typer) -> None:
                                               "(.json, .tools, .tbl) or CAMotics .camotics project"),
         tools: Optional[Path] = typer.Option(None, "--tools", help="tool library to read a toolpath with"),
         strict: bool = typer.Option(False, "--strict", help="G-code: unknown or unused words are errors"),
+        max_moves: int = typer.Option(DEFAULT_MAX_MOVES, "--max-moves", min=0,
+                                      help="G-code: refuse a program that expands to more moves (an arc's "
+                                           "extra turns count as moves); 0: no limit"),
         as_json: bool = typer.Option(False, "--json", help="print the report as JSON"),
     ) -> None:
         """Show what FusionCut reads from a toolpath, tool library or CAMotics project (all in mm)."""
-        report = inspect_file(file, tools, strict)
+        report = inspect_file(file, tools, strict, max_moves or None)
         if as_json:
             typer.echo(json.dumps(report, indent=2, allow_nan=False))
         else:

@@ -7,6 +7,7 @@ from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
 
@@ -54,4 +55,4 @@ def register(app: typer.Typer) -> None:
         fig = fn(results, cl, **kwargs) if kind in PER_CL else fn(results, **kwargs)
         del fig
         what = f"CL {cl}" if kind in PER_CL else f"{len(results.cl)} CLs"
-        console.print(f"wrote {out} ({kind.value}, {what}, {width}x{h_px} px)", highlight=False)
+        console.print(f"wrote {escape(str(out))} ({kind.value}, {what}, {width}x{h_px} px)", highlight=False)

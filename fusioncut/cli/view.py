@@ -7,6 +7,7 @@ from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
 from fusioncut.engines.base import EngineOptions
@@ -94,10 +95,10 @@ def register(app: typer.Typer) -> None:
         data = scene_glb(scene)
         if glb is not None:
             glb.write_bytes(data)
-            console.print(f"wrote {glb} ({_size(glb)})", highlight=False)
+            console.print(f"wrote {escape(str(glb))} ({_size(glb)})", highlight=False)
         write_view_html(data, out, title)
         m = state.map
-        console.print(f"wrote {out} ({_size(out)}): CL {cl} of {state.cl_count}, {m.status.value}, "
+        console.print(f"wrote {escape(str(out))} ({_size(out)}): CL {cl} of {state.cl_count}, {m.status.value}, "
                       f"{len(m.engaged_slices)} engaged slices", highlight=False)
 
     @app.command("export-ipw")
@@ -118,5 +119,5 @@ def register(app: typer.Typer) -> None:
         state, _ = _replay(_load(source, cl, None), cl)
         kind = write_ipw(state.engine.ipw, out, deflection)
         extra = f", deflection {deflection} mm" if kind == "STL" else ""
-        console.print(f"wrote {out} ({kind}{extra}, {_size(out)}): the workpiece after CL {cl} of {state.cl_count}, "
+        console.print(f"wrote {escape(str(out))} ({kind}{extra}, {_size(out)}): the workpiece after CL {cl} of {state.cl_count}, "
                       f"{state.engine.ipw_volume:.3f} mm³", highlight=False)

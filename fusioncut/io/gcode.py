@@ -1202,7 +1202,8 @@ class GCodeInterpreter:
         for number, (d, cr, taper, zmin, kind, where) in self._tool_comments.items():  # type: ignore[misc]
             try:
                 tools[number] = replace(_make_tool(number, d * scale, (cr or 0.0) * scale, taper,
-                                                   None if zmin is None else zmin * scale, kind), source=str(where))
+                                                   None if zmin is None else zmin * scale, kind), source=str(where),
+                                        name=_tool_name(kind))
             except ToolDefinitionError as e:
                 warnings.append(f"{where}: tool comment not usable: {e.reason}")
         return tools
@@ -1722,7 +1723,27 @@ def _parse_tool_comment(text: str) -> tuple[int, float, float | None, float | No
     kind = parts[-1] if parts else ""
     if kind.upper().startswith("ZMIN"):
         kind = ""
-    return number, d, cr, taper, zmin, kind.lower()
+    return number, d, cr, taper, zmin, kind
+
+
+# Fusion's tool type names (getToolTypeName), longest first: hobby posts append the tool's own
+# comment after them, "flat end mill 2 flute [d2.4mm]"
+_FUSION_TOOL_TYPES = tuple(sorted((
+    "flat end mill", "ball end mill", "bull nose end mill", "face mill", "chamfer mill", "tapered mill",
+    "slot mill", "radius mill", "dovetail mill", "lollipop mill", "thread mill", "form mill", "spot drill",
+    "center drill", "drill", "reamer", "boring bar", "counter bore", "counter sink", "right tap",
+    "left tap", "probe"), key=len, reverse=True))
+
+
+def _tool_name(kind: str) -> str:
+    """A tool comment's own words, as written: what follows Fusion's type name, or all of the text
+    when it starts with no type name Fusion writes."""
+    text = kind.strip().lstrip("-").strip()  # a comment without ZMIN keeps the " - " before the type
+    low = text.lower()
+    for t in _FUSION_TOOL_TYPES:
+        if low.startswith(t):
+            return text[len(t):].strip()
+    return text
 
 
 def _compile_tool_re():

@@ -661,3 +661,15 @@ def test_random_text_raises_only_fusioncut_errors(text: str, strict: bool) -> No
 @given(st.text(max_size=60))
 def test_arbitrary_unicode_raises_only_fusioncut_errors(text: str) -> None:
     _check_only_fusioncut_errors(text, False)
+
+
+@pytest.mark.parametrize("comment, kind, name", [
+    ("(T1  D=2.65 CR=0 - ZMIN=-12.55 - flat end mill)", "flat", ""),
+    # hobby posts append the tool's own comment after Fusion's type name
+    ("(T1 D=2.4 CR=0 - ZMIN=-3 - flat end mill 2 flute [d2.4mm])", "flat", "2 flute [d2.4mm]"),
+    ("(T1 D=6 CR=3 - ball end mill Ball 6)", "ball", "Ball 6"),
+    ("(T1 D=6 CR=0 - my cutter)", "flat", "my cutter"),
+])
+def test_tool_comment_keeps_the_tools_own_words_as_its_name(comment: str, kind: str, name: str) -> None:
+    tool = run(f"G21\n{comment}\nT1\nG1 X1 F100\n").tools[1]
+    assert (tool.kind, tool.name) == (kind, name)
