@@ -484,7 +484,7 @@ def _tbl_tool(number: int, d: float, comment: str, scale: float, where: SourceLo
     """The tool a table line describes; appends ``T<n>`` to ``assumed`` when its shape is a guess."""
     text = comment.lower()
     flute = ASSUMED_FLUTE_LENGTH_DIAMETERS * d
-    common = {"flute_length": flute, "number": number, "name": comment.strip()}
+    common = {"flute_length": flute, "number": number, "name": comment.strip(), "source": str(where)}
     if re.search(r"\b(drill|tap|reamer|thread|probe|boring)", text) and "mill-drill" not in text:
         raise ToolDefinitionError(f"T{number} ({comment.strip()!r}) is not a milling cutter", where)
     angle = _ANGLE.search(text)
@@ -666,7 +666,7 @@ def _camotics_tool(number: int, t: _CamTool, default_units: str, where: SourceLo
     if not (d > 0 and length > 0):
         raise ToolDefinitionError(f"{path}: T{number}: diameter and length must be > 0", where)
     shape = t.shape.lower()
-    common = {"flute_length": length, "number": number, "name": t.description}
+    common = {"flute_length": length, "number": number, "name": t.description, "source": f"{where}: {path}"}
     if shape == "cylindrical":
         return make_tool(FlatEndMill, where, path, diameter=d, **common)
     if shape == "ballnose":

@@ -222,3 +222,12 @@ def test_inspect_with_a_library_reports_the_disagreement(tmp_path):
     agreeing = {"data": [LIBRARY["data"][1]]}
     (tmp_path / "lib.json").write_text(json.dumps(agreeing))
     assert not any(": T2: " in w for w in inspect_file(tmp_path / "prog.nc", tmp_path / "lib.json")["warnings"])
+
+
+def test_table_tools_name_their_line_in_warnings(tmp_path, caplog):
+    (tmp_path / "t.tbl").write_text("T1 P1 D1.5 ;1.5mm end mill\nT2 P2 D4 ;4mm end mill\n")
+    job, base = job_in(tmp_path, tool_library="t.tbl")
+    with caplog.at_level(logging.WARNING, logger="fusioncut"):
+        prepare_job(job, base)
+    [w] = tool_warnings(caplog)
+    assert f"the tool library ({base / 't.tbl'}:2) says flat D=4" in w
