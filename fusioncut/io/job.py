@@ -124,7 +124,7 @@ class ToolSpec(_Strict):
                       helix_angle=self.helix_angle, spindle=SpindleDirection(self.spindle),
                       shank_diameter=self.shank_diameter, overall_length=self.overall_length,
                       neck_diameter=self.neck_diameter, shoulder_length=self.shoulder_length,
-                      number=self.number, name=self.name, source=f"job tools: T{self.number}")
+                      number=self.number, name=self.name)
         if self.kind == "flat":
             return FlatEndMill(**common)
         if self.kind == "ball":

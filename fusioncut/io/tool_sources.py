@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable
+from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from fusioncut.errors import InputError, ToolDefinitionError
@@ -36,17 +37,18 @@ log = logging.getLogger("fusioncut.run")
 ToolSource = Literal["library", "program"]
 
 
-def job_tools(specs: Iterable[ToolSpec], library: ToolLibrary | None, job_file: object) -> dict[int, MillingTool]:
+def job_tools(specs: Iterable[ToolSpec], library: ToolLibrary | None, where: Path) -> dict[int, MillingTool]:
     """The job's own tools by number; library picks (``{"number": 2, "library": {"name": ...}}``)
-    are looked up in ``library`` and renumbered. Errors name the job file and ``tools[i]``."""
+    are looked up in ``library`` and renumbered. Errors are located at ``where`` (the job's folder,
+    all the runner knows) and name ``tools[i]``."""
     out: dict[int, MillingTool] = {}
     for i, spec in enumerate(specs):
         if spec.number in out:
-            raise InputError(f"tools: T{spec.number} is defined twice", job_file)  # type: ignore[arg-type]
+            raise InputError(f"tools: T{spec.number} is defined twice", where)
         try:
             out[spec.number] = spec.build(library)
         except ToolDefinitionError as e:
-            raise ToolDefinitionError(f"tools[{i}] (T{spec.number}): {e}", job_file) from None  # type: ignore[arg-type]
+            raise ToolDefinitionError(f"tools[{i}] (T{spec.number}): {e}", where) from None
     return out
 
 
@@ -57,7 +59,8 @@ def _named(kind: str, tool: MillingTool, n: int, library: ToolLibrary | None, fi
     if kind == "job":
         return f"the job's tools ({tool.source})" if tool.source else "the job's tools"
     if kind == "library":
-        return f"the tool library ({tool.source})" if tool.source else f"the tool library ({library.source}: T{n})"  # type: ignore[union-attr]
+        entry = tool.source or (f"{library.source}: T{n}" if library is not None else f"T{n}")
+        return f"the tool library ({entry})"
     return f"the program ({tool.source})" if tool.source else f"the program (first used at {first_use.source})"
 
 
