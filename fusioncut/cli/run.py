@@ -22,6 +22,7 @@ from typing import Optional
 import typer
 from rich.console import Console
 from rich.logging import RichHandler
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 from rich.table import Table
 
@@ -123,12 +124,12 @@ def _run_with_progress(start: Callable[..., object]):
 
 
 def _print_summary(result) -> None:
-    table = Table(title=f"FusionCut results in {result.out_dir}")
+    table = Table(title=f"FusionCut results in {escape(str(result.out_dir))}")
     for col in ("operation", "CLs", "engaged", "air", "rapid", "failed", "removed mm³", "max ae mm",
                 "max ap mm", "median ms/CL"):
         table.add_column(col, justify="left" if col == "operation" else "right")
     for op in result.operations.values():
-        table.add_row(op.operation or "-", str(op.cls), str(op.engaged), str(op.air), str(op.rapid),
+        table.add_row(escape(op.operation) or "-", str(op.cls), str(op.engaged), str(op.air), str(op.rapid),
                       f"[red]{op.failed}[/]" if op.failed else "0", f"{op.removed:.1f}", f"{op.max_ae:.3f}",
                       f"{op.max_ap:.3f}", f"{op.median_ms:.1f}")
     console.print(table)
@@ -138,7 +139,7 @@ def _print_summary(result) -> None:
     if result.resumed_from:
         console.print(f"resumed from the checkpoint at CL {result.resumed_from}")
     if result.exported:
-        console.print("workpiece written to " + ", ".join(p.name for p in result.exported), highlight=False)
+        console.print("workpiece written to " + escape(", ".join(p.name for p in result.exported)), highlight=False)
     if result.interrupted:
         console.print("[yellow]interrupted: the results of every finished CL and a checkpoint were kept; "
                       "run the same command again to resume[/]")
