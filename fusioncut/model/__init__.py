@@ -9,6 +9,7 @@ from fusioncut.model.tools import (
     BallEndMill,
     BullNoseEndMill,
     ChamferMill,
+    Drill,
     FlatEndMill,
     MillingTool,
     SpindleDirection,
@@ -19,6 +20,6 @@ from fusioncut.model.tools import (
 __all__ = [
     "AngleInterval", "CLStatus", "EngagementMap", "SliceEngagement", "ArcMove", "ArcPlane", "LinearMove",
     "Move", "Toolpath", "BoxStock", "CylinderStock", "SolidStock", "Stock", "TOOL_KINDS", "AptCutter", "AptParameters",
-    "BallEndMill", "BullNoseEndMill", "ChamferMill", "FlatEndMill", "MillingTool", "SpindleDirection",
+    "BallEndMill", "BullNoseEndMill", "ChamferMill", "Drill", "FlatEndMill", "MillingTool", "SpindleDirection",
     "TaperedEndMill", "ToolProfile",
 ]
