@@ -10,13 +10,19 @@ single plain file name, never a path, so nothing can be read or written outside 
 from __future__ import annotations
 
 import re
+import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 
 from fusioncut.errors import InputError
 
-# Letters, digits and a few separators; must start with a letter or digit (no hidden files, no "..").
-_SAFE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._ +()\-]{0,127}$")
+# Letters and digits of any script (``résumé.nc``) and a few separators; must start with a letter or
+# digit (no hidden files, no ".."). Checked on the NFC form, which is also the name kept, so that
+# "é" typed as e + combining accent (as macOS names files) and as one letter is one name. NFC, not
+# NFKC: NFKC would turn look-alikes such as the fullwidth solidus into "/", NFC leaves them as they
+# are and the pattern refuses them, like control and direction-override characters.
+_SAFE = re.compile(r"^[^\W_][\w.+()\- ]{0,127}$")
+MAX_NAME_BYTES = 255  # a file name's limit on Linux file systems, in UTF-8 bytes
 
 INPUT_DIR = "input"
 RESULTS_DIR = "results"
@@ -41,14 +47,17 @@ DOWNLOAD_TYPES = {
 
 
 def check_name(name: str, what: str = "file name") -> str:
-    """``name`` itself when it is a safe plain file name; else an :class:`InputError` saying why."""
+    """``name`` in its NFC form when that is a safe plain file name; else an :class:`InputError` saying why."""
     if not isinstance(name, str) or not name:
         raise InputError(f"{what} is empty")
     if "/" in name or "\\" in name or name in (".", ".."):
         raise InputError(f"{what} {name!r} is not a plain file name (no folders or '..' allowed)")
+    name = unicodedata.normalize("NFC", name)
     if name != name.strip() or not _SAFE.match(name):
         raise InputError(f"{what} {name!r} has characters other than letters, digits and . _ - + ( ) space, "
                          "or does not start with a letter or digit")
+    if len(name.encode("utf-8")) > MAX_NAME_BYTES:
+        raise InputError(f"{what} {name[:40]!r}... is longer than {MAX_NAME_BYTES} bytes (UTF-8)")
     return name
 
 
