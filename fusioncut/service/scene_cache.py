@@ -43,6 +43,7 @@ from fusioncut.service.files import INPUT_DIR, JOB_FILE
 
 SCENES_DIR = "scenes"  # in the job folder, beside input/ and results/: a cache, not a result file
 STATES_DIR = "states"
+FAILURES_DIR = "failures"
 MAX_SPACED_STATES = 64
 MIN_STATE_SPACING = 100  # CLs; a demo state is ~70 kB and takes ~10 ms to save
 MAX_RECENT_STATES = 4
@@ -142,7 +143,9 @@ def _build(folder: Path, scenes: Path, out: Path, cl: int, max_triangles: int, t
     states.mkdir(parents=True, exist_ok=True)
     job = single_process(Job.model_validate_json((folder / INPUT_DIR / JOB_FILE).read_text(encoding="utf-8")))
     p = prepare_job(job, folder / INPUT_DIR)
-    options = replace(p.options, failure_dir=None)
+    # a CL that failed in the run fails again here: its shapes go beside the scenes (the engine's
+    # default is a folder in the worker's working directory)
+    options = replace(p.options, failure_dir=scenes / FAILURES_DIR)
     segments = check_cl_index(p.toolpath, cl, options)
     spacing = state_spacing(len(segments))
 

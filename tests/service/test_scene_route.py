@@ -95,6 +95,21 @@ def test_a_superseded_replay_stops(job_folder, monkeypatch):
     assert not (scenes / scene_name(20)).exists()
 
 
+def test_failed_cls_save_their_shapes_in_the_job_folder(job_folder, monkeypatch):
+    # the engine's default is a folder in the working directory: a worker's, shared by every job
+    from fusioncut.engines.brep.engine import BRepEngine
+
+    init, folders = BRepEngine.__init__, []
+
+    def recording(self, options=None, *args, **kwargs):
+        folders.append(options.failure_dir)
+        init(self, options, *args, **kwargs)
+
+    monkeypatch.setattr(BRepEngine, "__init__", recording)
+    assert build_scene(str(job_folder), 3)["state"] == "ready"
+    assert folders and all(f is not None and f.is_relative_to(job_folder / SCENES_DIR) for f in folders)
+
+
 def test_bad_cl_is_a_message_without_server_paths(job_folder):
     r = build_scene(str(job_folder), 999)
     assert r["state"] == "failed"
