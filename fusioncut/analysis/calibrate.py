@@ -226,3 +226,37 @@ def read_slot_tests_csv(path: str | Path) -> SlotTests:
     if len(data["c_mm"]) < 2:
         raise InputError(f"{len(data['c_mm'])} test row(s); need at least two feeds per tooth", path)
     return SlotTests(*(np.array(data[col]) for col in CSV_COLUMNS))
+
+
+COEFFICIENT_KEYS = ("ktc", "krc", "kac", "kte", "kre", "kae")
+
+
+def read_coefficients_json(path: str | Path) -> CuttingCoefficients:
+    """Cutting coefficients from a JSON object with the six keys of
+    :meth:`CuttingCoefficients.as_dict` (``ktc, krc, kac`` N/mm², ``kte, kre, kae`` N/mm; axial sign
+    convention of :mod:`fusioncut.analysis.forces`) and optional ``name`` and ``source`` strings.
+    Errors name the file (and the line of bad JSON)."""
+    import json
+
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not a UTF-8 text file ({exc.reason} at byte {exc.start})", path) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON: {exc.msg}", SourceLocation(str(path), exc.lineno, exc.colno)) from None
+    if not isinstance(data, dict):
+        raise InputError(f"expected an object with the keys {', '.join(COEFFICIENT_KEYS)}", path)
+    missing = [k for k in COEFFICIENT_KEYS if k not in data]
+    unknown = sorted(set(data) - set(COEFFICIENT_KEYS) - {"name", "source"})
+    if missing or unknown:
+        raise InputError(f"missing key(s) {missing}, unknown key(s) {unknown}; expected "
+                         f"{', '.join(COEFFICIENT_KEYS)} (and optional name, source)", path)
+    bad = [k for k in COEFFICIENT_KEYS if isinstance(data[k], bool) or not isinstance(data[k], (int, float))]
+    if bad:
+        raise InputError(f"coefficient(s) {', '.join(bad)} must be numbers", path)
+    try:
+        return CuttingCoefficients(**{k: float(data[k]) for k in COEFFICIENT_KEYS},
+                                   name=str(data.get("name", path.stem)), source=str(data.get("source", str(path))))
+    except InputError as exc:
+        raise InputError(exc.reason, path) from None

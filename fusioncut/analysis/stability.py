@@ -228,20 +228,74 @@ def zoa_lobes(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rp
     return rpm, out
 
 
+def unstable_speed_ranges(grid: ChatterGrid, curves: tuple[np.ndarray, np.ndarray], flutes: int, ap: float,
+                          rpm_lo: float, rpm_hi: float) -> np.ndarray:
+    """Speed ranges (rev/min, rows ``(lo, hi)``, merged and sorted) within ``[rpm_lo, rpm_hi]`` where the
+    ZOA limit is below ``ap`` (mm): every run of chatter frequencies whose ``a_lim < ap`` mapped through
+    every lobe ``n_k = 60 wc / (N (eps + 2 k pi))`` (to within the chatter-frequency grid)."""
+    a, eps = curves
+    out = []
+    for b in range(a.shape[1]):
+        low = np.isfinite(a[:, b]) & (a[:, b] < ap)
+        jump = np.r_[False, np.abs(np.diff(eps[:, b])) >= math.pi]
+        idx = np.flatnonzero(low)
+        if not len(idx):
+            continue
+        starts = np.flatnonzero(np.r_[True, (np.diff(idx) > 1) | jump[idx[1:]]])
+        wc, e = grid.wc[idx], eps[idx, b]
+        turns = 60.0 * wc / flutes / _TWO_PI  # wc T / 2 pi at 1 rev/min
+        k_lo = max(int(np.floor((turns / rpm_hi - e / _TWO_PI).min())), 0)
+        k_hi = int(np.ceil((turns / rpm_lo - e / _TWO_PI).max()))
+        if k_hi - k_lo > 5000:
+            raise InputError(f"the speed range {rpm_lo:g}..{rpm_hi:g} rev/min spans {k_hi - k_lo} lobes; narrow it")
+        k = np.arange(k_lo, k_hi + 1)
+        n = 60.0 * wc[:, None] / (flutes * (e[:, None] + _TWO_PI * k[None, :]))  # (P, K)
+        lo, hi = np.minimum.reduceat(n, starts, axis=0), np.maximum.reduceat(n, starts, axis=0)
+        keep = (hi >= rpm_lo) & (lo <= rpm_hi)
+        out.append(np.stack((lo[keep], hi[keep]), axis=1))
+    if not out or not sum(len(o) for o in out):
+        return np.zeros((0, 2))
+    r = np.concatenate(out)
+    r = r[np.argsort(r[:, 0])]
+    merged = [r[0].copy()]
+    for lo, hi in r[1:]:
+        if lo <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], hi)
+        else:
+            merged.append(np.array([lo, hi]))
+    return np.clip(np.array(merged), rpm_lo, rpm_hi)
+
+
 def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: float, ap: float,
-                       rpm_lo: float, rpm_hi: float, speeds: int = 401) -> float:
-    """The speed in ``[rpm_lo, rpm_hi]`` (searched on ``speeds`` evenly spaced speeds, so to within
-    their spacing) nearest to ``rpm`` where the ZOA limit exceeds ``ap`` (mm); ``rpm`` itself when
-    stable there; NaN when none of the speeds is stable."""
+                       rpm_lo: float, rpm_hi: float) -> float:
+    """The speed in ``[rpm_lo, rpm_hi]`` nearest to ``rpm`` where the ZOA limit exceeds ``ap`` (mm):
+    ``rpm`` itself when stable there, else the nearer end of its unstable range
+    (:func:`unstable_speed_ranges`) moved outwards in steps of 0.05 % until the limit there exceeds
+    ``ap``, then bisected to within 0.05 % / 4096 of the boundary; NaN when the whole range is unstable."""
     curves = zoa_curves(alpha0, grid, ktc, flutes)
     if zoa_a_lim(alpha0, grid, ktc, flutes, rpm, curves)[0] > ap:
         return float(rpm)
-    cand = np.linspace(rpm_lo, rpm_hi, speeds)
-    lim = np.concatenate([zoa_a_lim(alpha0, grid, ktc, flutes, cand[i:i + 50], curves) for i in range(0, speeds, 50)])
-    ok = np.flatnonzero(lim > ap)
-    if not len(ok):
-        return math.nan
-    return float(cand[ok[np.argmin(np.abs(cand[ok] - rpm))]])
+    ranges = unstable_speed_ranges(grid, curves, flutes, ap, rpm_lo, rpm_hi)
+    cands = []
+    for lo, hi in ranges:
+        if lo > rpm_lo:
+            cands.append((lo, -1.0))
+        if hi < rpm_hi:
+            cands.append((hi, 1.0))
+    for speed, sense in sorted(cands, key=lambda c: abs(c[0] - rpm)):
+        inner = speed
+        for i in range(1, 21):
+            n = speed * (1 + sense * 5e-4 * i)
+            if rpm_lo <= n <= rpm_hi and zoa_a_lim(alpha0, grid, ktc, flutes, n, curves)[0] > ap:
+                for _ in range(12):  # the boundary between the last unstable and the stable speed
+                    mid = 0.5 * (inner + n)
+                    if zoa_a_lim(alpha0, grid, ktc, flutes, mid, curves)[0] > ap:
+                        n = mid
+                    else:
+                        inner = mid
+                return float(n)
+            inner = n
+    return math.nan
 
 
 # --------------------------------------------------------------------------------------------------
@@ -383,3 +437,89 @@ def _sd_a_lim_fixed(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.
         lo[todo] = np.where(bad, lo[todo], mid)
     out = np.where(first > 0, np.sqrt(lo * hi), np.inf)
     return np.where(first == 0, depths[:, 0], out)
+
+
+# --------------------------------------------------------------------------------------------------
+# a whole program
+
+STABILITY_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("cl", "", "CL index"),
+    ("file", "", "source file of the move"),
+    ("line", "", "1-based source line"),
+    ("operation", "", "operation"),
+    ("status", "", "engagement status of the CL (engaged, air, rapid, failed)"),
+    ("spindle_rpm", "1/min", "spindle speed"),
+    ("ap_mm", "mm", "axial depth of cut of the CL"),
+    ("a_lim_zoa_mm", "mm", "limiting axial depth, zero-order approximation (inf: no engaged edge)"),
+    ("a_lim_sd_mm", "mm", "limiting axial depth, semi-discretization (NaN: not computed)"),
+    ("margin", "", "ap / the smaller limit: below 1 stable, 1 or more chatter predicted"),
+    ("nearest_stable_rpm", "1/min", "nearest speed in the searched range where the ZOA limit exceeds ap "
+                                     "(the CL's own speed when stable; NaN: none)"),
+)
+"""Columns of :func:`stability_table`: (name, unit, meaning)."""
+
+
+def _key(*arrays: np.ndarray) -> bytes:
+    """Cache key of arrays rounded to 1e-9 (equal engagements of a program's CLs share their limits)."""
+    return b"|".join(np.round(np.asarray(a, dtype=float), 9).tobytes() for a in arrays)
+
+
+def stability_table(
+    maps: Sequence[EngagementMap],
+    tool: MillingTool,
+    coefficients: CuttingCoefficients,
+    dynamics: ToolDynamics,
+    rpm: Sequence[float | None],
+    *,
+    dz: float | None = None,
+    sd: bool = True,
+    sd_steps: int = 30,
+    rpm_range: tuple[float, float] | None = None,
+):  # -> pandas.DataFrame
+    """Per-CL stability (columns :data:`STABILITY_COLUMNS`), one row per map, for one tool.
+
+    ``rpm``: the spindle speed of each map (None: unknown, the row's limits are NaN, as for rapids and
+    failed CLs). ``rpm_range`` (rev/min): where :func:`nearest_stable_rpm` searches; by default 0.5 to
+    1.5 times the CL's speed. CLs with equal bands, speed and flute count share one computation.
+    """
+    import pandas as pd
+
+    if len(rpm) != len(maps):
+        raise InputError(f"{len(rpm)} spindle speeds for {len(maps)} CLs")
+    grid = chatter_grid(dynamics)
+    system = ModalSystem.from_dynamics(dynamics)
+    ktc = coefficients.ktc
+    names = [c[0] for c in STABILITY_COLUMNS]
+    cache: dict[bytes, tuple[float, float, float]] = {}
+    rows = []
+    for emap, n in zip(maps, rpm):
+        row: dict[str, object] = dict.fromkeys(names, math.nan)
+        row.update(cl=emap.cl_index, file=str(emap.source.file), line=int(emap.source.line),
+                   operation=emap.operation, status=emap.status.value, spindle_rpm=math.nan if not n else float(n),
+                   ap_mm=float(emap.ap))
+        rows.append(row)
+        if emap.status in (CLStatus.FAILED, CLStatus.RAPID) or not n:
+            continue
+        if not (n > 0 and math.isfinite(n)):
+            raise InputError(f"CL {emap.cl_index}: spindle speed must be > 0 rev/min, got {n}", emap.source)
+        cd = cl_directional(emap, tool, coefficients, dz)
+        if not cd.engaged:
+            row.update(a_lim_zoa_mm=math.inf, a_lim_sd_mm=math.inf if sd else math.nan, margin=0.0,
+                       nearest_stable_rpm=float(n))
+            continue
+        b = cd.bands
+        key = _key(cd.alpha0, cd.lag, b.area, b.sk, b.ck, b.entry, b.span, np.array([n, cd.flutes, cd.ap]))
+        if key not in cache:
+            zoa = float(zoa_a_lim(cd.alpha0, grid, ktc, cd.flutes, n)[0])
+            sdl = math.nan
+            if sd:
+                ref = zoa if math.isfinite(zoa) else cd.ap
+                sdl = float(sd_a_lim(cd, system, ktc, n, ref, steps=sd_steps)[0])
+            lo, hi = rpm_range if rpm_range is not None else (0.5 * n, 1.5 * n)
+            near = nearest_stable_rpm(cd.alpha0, grid, ktc, cd.flutes, n, cd.ap, lo, hi)
+            cache[key] = (zoa, sdl, near)
+        zoa, sdl, near = cache[key]
+        limit = min(zoa, sdl) if sd else zoa
+        row.update(a_lim_zoa_mm=zoa, a_lim_sd_mm=sdl, margin=cd.ap / limit, nearest_stable_rpm=near)
+    df = pd.DataFrame(rows, columns=names)
+    return df.astype({"cl": "int64", "line": "int64", "file": "string", "operation": "string", "status": "string"})

@@ -8,14 +8,15 @@ modal mass 0.03993 kg, Kt = 6e8 N/m², Kn = 2e8 N/m² (Kr = 1/3), 2 flutes.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fusioncut.analysis.dynamics import Mode, ToolDynamics
 from fusioncut.analysis.forces import CuttingCoefficients
-from fusioncut.analysis.stability import (ModalSystem, chatter_grid, cl_directional, sd_a_lim, sd_spectral_radius,
-                                          zoa_a_lim, zoa_lobes)
+from fusioncut.analysis.stability import (STABILITY_COLUMNS, ModalSystem, chatter_grid, cl_directional,
+                                          nearest_stable_rpm, sd_a_lim, sd_spectral_radius, zoa_a_lim, zoa_lobes)
 from fusioncut.errors import GeometryError
 from fusioncut.model import AngleInterval, CLStatus, EngagementMap, FlatEndMill, SliceEngagement, SpindleDirection
 
@@ -183,3 +184,108 @@ def test_sd_against_zoa_for_a_slot_and_its_convergence() -> None:
     lims = [sd_a_lim(cd2, system, KTC, 12000.0, ref, steps=s, per_vibration=0)[0] for s in (20, 40, 80)]
     gaps = np.abs(np.diff(lims))
     assert gaps[1] < 0.5 * gaps[0] and gaps[1] < 0.015 * lims[-1], lims
+
+
+# --------------------------------------------------------------------------------------------------
+# nearest stable speed, a whole results directory and the command
+
+
+def test_nearest_stable_speed_is_the_nearest() -> None:
+    """Between the CL's speed and the speed returned every speed is unstable; there it is stable."""
+    cd = cl_directional(emap([(0, 180)]), tool(), COEF, dz=1.0)
+    grid = chatter_grid(BENCH_X)
+    ap = 0.5
+    for rpm in (5000.0, 10000.0, 16000.0):
+        lim = zoa_a_lim(cd.alpha0, grid, KTC, 2, rpm)[0]
+        assert lim < ap  # unstable where we start
+        near = nearest_stable_rpm(cd.alpha0, grid, KTC, 2, rpm, ap, 0.5 * rpm, 1.5 * rpm)
+        assert zoa_a_lim(cd.alpha0, grid, KTC, 2, near)[0] > ap
+        between = np.linspace(rpm, rpm + (near - rpm) * (1 - 1e-5), 300)
+        assert np.all(zoa_a_lim(cd.alpha0, grid, KTC, 2, between) <= ap)
+        other = np.linspace(rpm, rpm - (near - rpm), 300)  # the other side is no nearer
+        assert np.all(zoa_a_lim(cd.alpha0, grid, KTC, 2, other[:-1]) <= ap)
+    # stable: the speed itself; nothing stable in the range: NaN
+    assert nearest_stable_rpm(cd.alpha0, grid, KTC, 2, 9300.0, 0.1, 5000.0, 15000.0) == 9300.0
+    assert math.isnan(nearest_stable_rpm(cd.alpha0, grid, KTC, 2, 9300.0, 50.0, 5000.0, 15000.0))
+
+
+def _results(out):
+    """A results directory: a 2 mm slot, a 2 mm half-immersion cut, air and a rapid (10 mm flat mill)."""
+    from fusioncut.errors import SourceLocation
+    from fusioncut.io.results import ResultWriter
+
+    def cl(i, intervals, status=CLStatus.ENGAGED, feed=600.0):
+        sl = tuple(SliceEngagement(0.25 + 0.5 * k, -2.0 + 0.25 + 0.5 * k, 5.0,
+                                   tuple(AngleInterval(a, b) for a, b in intervals)) for k in range(4))
+        return EngagementMap(i, (i + 1.0, 0, -2.0), (float(i), 0, -2.0), "T1", SpindleDirection.CW, 0.0, status,
+                             source=SourceLocation("prog.nc", 10 + i), feed=feed, operation="op",
+                             slices=sl if intervals else (), axial_range=(0.0, 2.0) if intervals else (0.0, 0.0))
+
+    maps = [cl(0, [(0.0, 180.0)]), cl(1, [(90.0, 180.0)]), cl(2, [], CLStatus.AIR), cl(3, [], CLStatus.RAPID, None)]
+    with ResultWriter(out, tools={"T1": {"kind": "flat", "diameter_mm": 10.0, "flute_length_mm": 20.0}}) as w:
+        for m in maps:
+            w.add(m, length_mm=1.0)
+    return maps
+
+
+def test_stability_command(tmp_path) -> None:
+    import json
+
+    import matplotlib.image as mpimg
+    import pandas as pd
+    import typer
+    from typer.testing import CliRunner
+
+    from fusioncut.analysis.dynamics import read_modes_json
+    from fusioncut.cli.stability import register
+
+    app = typer.Typer()
+    register(app)
+    app.command("noop")(lambda: None)
+    maps = _results(tmp_path / "res")
+    modes = Path(__file__).parents[2] / "docs" / "stability_modes_example.json"
+    out = tmp_path / "stab"
+    args = ["stability", str(tmp_path / "res"), "--modes", str(modes), "--rpm", "9000", "--flutes", "4",
+            "--helix", "30", "--slice-height", "0.5", "--out", str(out)]
+    r = CliRunner().invoke(app, args + ["--no-plot"])
+    assert r.exit_code == 0, r.output
+    csv = pd.read_csv(out / "stability.csv")
+    pq = pd.read_parquet(out / "stability.parquet")
+    assert list(csv.columns) == [c for c, _, _ in STABILITY_COLUMNS]
+    np.testing.assert_allclose(csv["a_lim_zoa_mm"], pq["a_lim_zoa_mm"], rtol=1e-12)
+    # the engaged rows are the direct computation's
+    dyn = read_modes_json(modes)
+    t = FlatEndMill(diameter=10.0, flute_length=20.0, flutes=4, helix_angle=30.0)
+    from fusioncut.analysis.materials import AL7075_T6_CARBIDE as AL
+
+    grid, system = chatter_grid(dyn), ModalSystem.from_dynamics(dyn)
+    for i in (0, 1):
+        cd = cl_directional(maps[i], t, AL, 0.5)
+        zoa = zoa_a_lim(cd.alpha0, grid, AL.ktc, 4, 9000.0)[0]
+        sd = sd_a_lim(cd, system, AL.ktc, 9000.0, zoa)[0]
+        assert csv.loc[i, "a_lim_zoa_mm"] == pytest.approx(zoa, rel=1e-9)
+        assert csv.loc[i, "a_lim_sd_mm"] == pytest.approx(sd, rel=1e-9)
+        assert csv.loc[i, "margin"] == pytest.approx(2.0 / min(zoa, sd), rel=1e-9)
+        assert csv.loc[i, "ap_mm"] == pytest.approx(2.0)
+    assert csv.loc[2, "margin"] == 0 and np.isinf(csv.loc[2, "a_lim_zoa_mm"])   # air
+    assert csv.loc[3, ["a_lim_zoa_mm", "a_lim_sd_mm", "margin"]].isna().all()     # rapid
+    # a coefficients file: twice the cutting coefficients halve the ZOA limit
+    coef = tmp_path / "k.json"
+    coef.write_text(json.dumps({k: 2 * v for k, v in AL.as_dict().items()}))
+    r = CliRunner().invoke(app, args[:-1] + [str(tmp_path / "stab2"), "--coefficients", str(coef), "--no-sd"])
+    assert r.exit_code == 0, r.output
+    assert not (out / "lobes.png").exists()
+    for png in ("lobes.png", "margin.png"):
+        assert mpimg.imread(tmp_path / "stab2" / png).shape[0] > 100
+    half = pd.read_csv(tmp_path / "stab2" / "stability.csv")
+    np.testing.assert_allclose(half["a_lim_zoa_mm"][:2], csv["a_lim_zoa_mm"][:2] / 2, rtol=1e-9)
+    assert half["a_lim_sd_mm"][:2].isna().all()
+    # bad input: one line naming the file, exit code 2
+    coef.write_text('{"ktc": 1}')
+    bad_modes = tmp_path / "bad.json"
+    bad_modes.write_text('{"x": [{"fn_hz": 600, "zeta": 0.03, "k_n_per_m": 0}]}')
+    for extra, msg in (([ "--coefficients", str(coef)], f"{coef}: missing key(s)"),
+                       (["--modes", str(bad_modes)], f"{bad_modes}: x[0]: mode k_n_per_m"),
+                       (["--rpm-min", "100"], "give both --rpm-min and --rpm-max")):
+        r = CliRunner().invoke(app, args + extra)
+        assert r.exit_code == 2 and msg in " ".join(r.output.split()), r.output

@@ -1,0 +1,177 @@
+"""``fusioncut stability RESULTS --modes FILE --out DIR``: chatter stability per CL of a run.
+
+Writes ``stability.csv`` / ``stability.parquet`` (columns
+:data:`fusioncut.analysis.stability.STABILITY_COLUMNS`), ``lobes.png`` (ZOA and SD limit against the
+spindle speed for one CL, with every CL's (speed, ap) point of the same tool over it) and
+``margin.png`` (ap / a_lim along the program). The spindle speed, flute count and helix come as for
+``fusioncut forces`` (``--program`` or ``--rpm``/``--flutes``/``--helix``); the cutting coefficients
+from ``--material`` or a coefficients file (``--coefficients``, JSON, see
+:func:`fusioncut.analysis.calibrate.read_coefficients_json`).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+from rich.console import Console
+
+from fusioncut.cli._errors import friendly_errors
+from fusioncut.cli.forces import _MATERIAL_HELP, _setup, _tool_info, _write_table
+
+console = Console()
+
+
+@friendly_errors
+def stability(
+    results_dir: Path = typer.Argument(..., metavar="RESULTS", help="Results directory of a run."),
+    modes: Path = typer.Option(..., "--modes", help="Tool-tip dynamics: modes (.json) or a measured FRF (.csv)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Directory for stability.csv/.parquet and the plots."),
+    material: str = typer.Option("al7075-t6", "--material", help=_MATERIAL_HELP),
+    coefficients: Optional[Path] = typer.Option(None, "--coefficients", help="Cutting coefficients file (JSON; "
+                                                                             "overrides --material)."),
+    program: Optional[Path] = typer.Option(None, "--program", help="The program the results came from: spindle "
+                                                                    "speeds and tool geometry."),
+    rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min) for every CL."),
+    flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
+    helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
+    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm "
+                                                                              "(default: inferred)."),
+    sd: bool = typer.Option(True, "--sd/--no-sd", help="Also the semi-discretization limit (slower)."),
+    sd_steps: int = typer.Option(30, "--sd-steps", min=4, help="Least SD steps per tooth period."),
+    rpm_min: Optional[float] = typer.Option(None, "--rpm-min", help="Lowest speed searched for a stable one "
+                                                                    "(default: half the CL's)."),
+    rpm_max: Optional[float] = typer.Option(None, "--rpm-max", help="Highest speed searched (default: 1.5 times "
+                                                                    "the CL's)."),
+    n_modes: Optional[int] = typer.Option(None, "--fit-modes", min=1, help="Modes per direction fitted to an FRF "
+                                                                           "(default: one per clear peak)."),
+    lobes_cl: Optional[int] = typer.Option(None, "--lobes-cl", help="CL whose lobes are drawn (default: the "
+                                                                     "largest margin)."),
+    plot: bool = typer.Option(True, "--plot/--no-plot", help="Draw lobes.png and margin.png."),
+) -> None:
+    """Chatter stability per CL: limiting depth by ZOA and SD, margin ap / a_lim, nearest stable speed."""
+    import pandas as pd
+
+    from fusioncut.analysis.dynamics import read_dynamics
+    from fusioncut.analysis.stability import STABILITY_COLUMNS, stability_table
+    from fusioncut.errors import InputError
+
+    dyn, fits = read_dynamics(modes, n_modes)
+    for d, fit in fits.items():
+        console.print(f"FRF {d}: {len(fit.modes)} mode(s) " + ", ".join(
+            f"{m.fn_hz:.1f} Hz zeta {m.zeta:.4f} k {m.k_n_per_m:.4g} N/m" for m in fit.modes)
+            + f"; fit error {100 * fit.relative_rms_error:.2f} % (relative RMS)", highlight=False)
+        if fit.relative_rms_error > 0.1:
+            console.print(f"[yellow]note:[/] the modal fit of {d} misses the FRF by "
+                          f"{100 * fit.relative_rms_error:.0f} %: check the modes (--fit-modes)", highlight=False)
+    if (rpm_min is None) != (rpm_max is None):
+        raise InputError("give both --rpm-min and --rpm-max, or neither")
+    rpm_range = None
+    if rpm_min is not None and rpm_max is not None:
+        if not (0 < rpm_min < rpm_max and math.isfinite(rpm_max)):
+            raise InputError(f"need 0 < --rpm-min < --rpm-max, got {rpm_min:g}, {rpm_max:g}")
+        rpm_range = (rpm_min, rpm_max)
+    s = _setup(results_dir, program, material, rpm, flutes, helix, slice_height)
+    if coefficients is not None:
+        from fusioncut.analysis.calibrate import read_coefficients_json
+
+        s.coefficients = read_coefficients_json(coefficients)
+    parts = []
+    for label, idx in s.groups.items():
+        part = stability_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, dyn,
+                               [s.rpms[i] for i in idx], dz=s.dz, sd=sd, sd_steps=sd_steps, rpm_range=rpm_range)
+        part.index = idx
+        parts.append(part)
+    table = pd.concat(parts).sort_index()
+    out.mkdir(parents=True, exist_ok=True)
+    _write_table(table, out / "stability", {c: (u, d) for c, u, d in STABILITY_COLUMNS},
+                 {"modes": dyn.as_dict(), "coefficients": s.coefficients.as_dict(),
+                  "coefficients_name": s.coefficients.name or material, "slice_height_mm": s.dz, "sd": sd,
+                  "tools": {k: _tool_info(t) for k, t in s.tools.items()}})
+    wrote = ["stability.csv", "stability.parquet"]
+    known = table[table["margin"].notna()]
+    if plot and len(known):
+        chosen = _chosen_row(table, lobes_cl)
+        _plot_lobes(s, table, chosen, dyn, sd, sd_steps, out / "lobes.png")
+        _plot_margin(table, out / "margin.png")
+        wrote += ["lobes.png", "margin.png"]
+    chatter = known[known["margin"] >= 1.0]
+    console.print(f"stability of {len(known)} CL(s) ({s.coefficients.name or material}, Ktc "
+                  f"{s.coefficients.ktc:g} N/mm²): {len(chatter)} with margin >= 1 (chatter predicted), largest "
+                  f"margin {known['margin'].max() if len(known) else math.nan:.3g}", highlight=False)
+    console.print(f"wrote {', '.join(wrote)} in {out}", highlight=False)
+
+
+def _chosen_row(table: Any, cl: Optional[int]) -> Any:
+    from fusioncut.errors import InputError
+
+    known = table[table["margin"].notna() & (table["status"] == "engaged")]
+    if cl is None:
+        if not len(known):
+            known = table[table["margin"].notna()]
+        return known.loc[known["margin"].idxmax()]
+    rows = table[table["cl"] == cl]
+    if not len(rows) or not rows["margin"].notna().any():
+        raise InputError(f"--lobes-cl {cl}: no such CL with a stability limit (engaged, with a spindle speed)")
+    return rows[rows["margin"].notna()].iloc[-1]
+
+
+def _plot_lobes(s: Any, table: Any, row: Any, dyn: Any, sd: bool, sd_steps: int, path: Path) -> None:
+    """ZOA (and SD at 40 speeds) lobes of the chosen CL between 0.3 and 2 times its speed, with the
+    (speed, ap) points of the CLs of the same tool (red: margin >= 1)."""
+    import numpy as np
+
+    from fusioncut.analysis.stability import ModalSystem, chatter_grid, cl_directional, sd_a_lim, zoa_lobes
+    from fusioncut.viz.plots import new_figure, save_figure
+
+    i = int(row.name)
+    emap = s.maps[i]
+    tool = s.tools[emap.tool]
+    cd = cl_directional(emap, tool, s.coefficients, s.dz)
+    n = float(row["spindle_rpm"])
+    grid = chatter_grid(dyn)
+    speeds, zoa = zoa_lobes(cd.alpha0, grid, s.coefficients.ktc, cd.flutes, 0.3 * n, 2.0 * n, 400)
+    fig = new_figure((9.0, 5.5))
+    ax = fig.subplots()
+    ax.plot(speeds, zoa, color="black", lw=1.2, label="ZOA a_lim", gid="zoa")
+    if sd:
+        few = np.linspace(0.3 * n, 2.0 * n, 40)
+        ref = np.interp(few, speeds, np.where(np.isfinite(zoa), zoa, cd.ap))
+        lim = sd_a_lim(cd, ModalSystem.from_dynamics(dyn), s.coefficients.ktc, few, ref, steps=sd_steps)
+        ax.plot(few, lim, "o-", color="#2c7fb8", ms=3, lw=1.0, label="SD a_lim", gid="sd")
+    same = table[(table["margin"].notna()) & (table.index.isin(s.groups[emap.tool]))]
+    bad = same["margin"] >= 1.0
+    ax.scatter(same.loc[~bad, "spindle_rpm"], same.loc[~bad, "ap_mm"], s=10, color="#1a9850",
+               label="CLs, margin < 1", gid="stable")
+    ax.scatter(same.loc[bad, "spindle_rpm"], same.loc[bad, "ap_mm"], s=10, color="#d73027",
+               label="CLs, margin >= 1", gid="chatter")
+    ax.scatter([n], [row["ap_mm"]], s=60, marker="*", color="black", label=f"CL {int(row['cl'])}", gid="chosen")
+    top = np.nanmax(np.concatenate([zoa[np.isfinite(zoa)], same["ap_mm"].to_numpy(dtype=float), [1e-3]]))
+    ax.set_ylim(0, min(top, 4 * max(float(np.nanmin(zoa)), float(row["ap_mm"]))) * 1.1)
+    ax.set_xlabel("spindle speed (rev/min)")
+    ax.set_ylabel("axial depth (mm)")
+    ax.set_title(f"Stability lobes of CL {int(row['cl'])} ({row['operation'] or 'no operation'}, tool {emap.tool}); "
+                 "points: every CL of the tool", fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    save_figure(fig, path)
+
+
+def _plot_margin(table: Any, path: Path) -> None:
+    from fusioncut.viz.plots import new_figure, save_figure
+
+    fig = new_figure((11.0, 4.0))
+    ax = fig.subplots()
+    ax.plot(table["cl"], table["margin"], color="black", lw=1.0, drawstyle="steps-mid", gid="margin")
+    ax.axhline(1.0, color="#d73027", lw=1.0, ls="--", label="stability limit")
+    ax.set_xlabel("CL")
+    ax.set_ylabel("margin ap / a_lim")
+    ax.set_title("Chatter margin along the program (>= 1: chatter predicted)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    save_figure(fig, path)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("stability")(stability)
