@@ -182,3 +182,33 @@ def _sub(b: object, m: int) -> object:
     import dataclasses
 
     return dataclasses.replace(b, **{f.name: getattr(b, f.name)[m:m + 1] for f in dataclasses.fields(b)})
+
+
+DEFLECTION_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("tip_deflection_peak_um", "um", "largest static deflection of the tool tip over a revolution"),
+    ("sle_min_um", "um", "smallest wall surface location error over the heights finishing a wall (- overcut)"),
+    ("sle_max_um", "um", "largest wall surface location error over the heights finishing a wall (+ undercut)"),
+)
+"""Columns of :func:`deflection_table`: (name, unit, meaning)."""
+
+
+def deflection_table(maps: Sequence[EngagementMap], tool: MillingTool, coefficients: CuttingCoefficients,
+                     beam: SteppedCantilever, rpm: Sequence[float | None], *, dz: float | None = None,
+                     samples: int = 360):  # -> pandas.DataFrame
+    """Per-CL deflection summary (columns :data:`DEFLECTION_COLUMNS`, micrometres), one row per map;
+    NaN for rapids, failed CLs and CLs without a feed or spindle speed, and SLE NaN where no wall is
+    finished."""
+    import pandas as pd
+
+    rows = []
+    for emap, n in zip(maps, rpm):
+        row = dict.fromkeys([c[0] for c in DEFLECTION_COLUMNS], math.nan)
+        rows.append(row)
+        if emap.status in (CLStatus.FAILED, CLStatus.RAPID) or not n or emap.feed is None:
+            continue
+        d = cl_deflection(emap, tool, coefficients, beam, rpm=float(n), dz=dz, samples=samples)
+        row["tip_deflection_peak_um"] = 1e3 * d.tip_peak_mm
+        known = d.sle_mm[np.isfinite(d.sle_mm)]
+        if len(known):
+            row["sle_min_um"], row["sle_max_um"] = 1e3 * float(known.min()), 1e3 * float(known.max())
+    return pd.DataFrame(rows, columns=[c[0] for c in DEFLECTION_COLUMNS])

@@ -3,7 +3,8 @@
 Writes ``stability.csv`` / ``stability.parquet`` (columns
 :data:`fusioncut.analysis.stability.STABILITY_COLUMNS`), ``lobes.png`` (ZOA and SD limit against the
 spindle speed for one CL, with every CL's (speed, ap) point of the same tool over it) and
-``margin.png`` (ap / a_lim along the program). The spindle speed, flute count and helix come as for
+``margin.png`` (ap / a_lim along the program); with ``--stick-out`` also the static deflection columns
+(:data:`fusioncut.analysis.deflection.DEFLECTION_COLUMNS`) and ``deflection.png``. The spindle speed, flute count and helix come as for
 ``fusioncut forces`` (``--program`` or ``--rpm``/``--flutes``/``--helix``); the cutting coefficients
 from ``--material`` or a coefficients file (``--coefficients``, JSON, see
 :func:`fusioncut.analysis.calibrate.read_coefficients_json`).
@@ -49,11 +50,19 @@ def stability(
     lobes_cl: Optional[int] = typer.Option(None, "--lobes-cl", help="CL whose lobes are drawn (default: the "
                                                                      "largest margin)."),
     plot: bool = typer.Option(True, "--plot/--no-plot", help="Draw lobes.png and margin.png."),
+    stick_out: Optional[float] = typer.Option(None, "--stick-out", help="Tool stick-out from the holder (mm): "
+                                                                        "adds the static deflection columns."),
+    flute_factor: float = typer.Option(0.8, "--flute-factor", help="Effective diameter of the flutes for "
+                                                                   "bending, fraction of the diameter."),
+    youngs_gpa: float = typer.Option(600.0, "--youngs-gpa", help="Young's modulus of the tool (GPa; carbide "
+                                                                 "about 600)."),
 ) -> None:
-    """Chatter stability per CL: limiting depth by ZOA and SD, margin ap / a_lim, nearest stable speed."""
+    """Chatter stability per CL: limiting depth by ZOA and SD, margin ap / a_lim, nearest stable speed;
+    with --stick-out also the static tool deflection and the wall's surface location error."""
     import pandas as pd
 
     from fusioncut.analysis.dynamics import read_dynamics
+    from fusioncut.analysis.deflection import DEFLECTION_COLUMNS, SteppedCantilever, deflection_table
     from fusioncut.analysis.stability import STABILITY_COLUMNS, stability_table
     from fusioncut.errors import InputError
 
@@ -81,11 +90,16 @@ def stability(
     for label, idx in s.groups.items():
         part = stability_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, dyn,
                                [s.rpms[i] for i in idx], dz=s.dz, sd=sd, sd_steps=sd_steps, rpm_range=rpm_range)
+        if stick_out is not None:
+            beam = SteppedCantilever.for_tool(s.tools[label], stick_out, flute_factor, youngs_gpa * 1e3)
+            extra = deflection_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, beam,
+                                     [s.rpms[i] for i in idx], dz=s.dz)
+            part = pd.concat([part.reset_index(drop=True), extra], axis=1)
         part.index = idx
         parts.append(part)
     table = pd.concat(parts).sort_index()
     out.mkdir(parents=True, exist_ok=True)
-    _write_table(table, out / "stability", {c: (u, d) for c, u, d in STABILITY_COLUMNS},
+    _write_table(table, out / "stability", {c: (u, d) for c, u, d in STABILITY_COLUMNS + DEFLECTION_COLUMNS},
                  {"modes": dyn.as_dict(), "coefficients": s.coefficients.as_dict(),
                   "coefficients_name": s.coefficients.name or material, "slice_height_mm": s.dz, "sd": sd,
                   "tools": {k: _tool_info(t) for k, t in s.tools.items()}})
@@ -96,6 +110,9 @@ def stability(
         _plot_lobes(s, table, chosen, dyn, sd, sd_steps, out / "lobes.png")
         _plot_margin(table, out / "margin.png")
         wrote += ["lobes.png", "margin.png"]
+        if stick_out is not None:
+            _plot_deflection(table, out / "deflection.png")
+            wrote.append("deflection.png")
     chatter = known[known["margin"] >= 1.0]
     console.print(f"stability of {len(known)} CL(s) ({s.coefficients.name or material}, Ktc "
                   f"{s.coefficients.ktc:g} N/mm²): {len(chatter)} with margin >= 1 (chatter predicted), largest "
@@ -168,6 +185,24 @@ def _plot_margin(table: Any, path: Path) -> None:
     ax.set_xlabel("CL")
     ax.set_ylabel("margin ap / a_lim")
     ax.set_title("Chatter margin along the program (>= 1: chatter predicted)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    save_figure(fig, path)
+
+
+def _plot_deflection(table: Any, path: Path) -> None:
+    from fusioncut.viz.plots import new_figure, save_figure
+
+    fig = new_figure((11.0, 4.0))
+    ax = fig.subplots()
+    ax.plot(table["cl"], table["tip_deflection_peak_um"], color="black", lw=1.0, drawstyle="steps-mid",
+            label="tip deflection, peak", gid="tip")
+    ax.fill_between(table["cl"], table["sle_min_um"], table["sle_max_um"], step="mid", color="#2c7fb8", alpha=0.5,
+                    label="wall surface location error (+ material left)", gid="sle")
+    ax.axhline(0.0, color="grey", lw=0.6)
+    ax.set_xlabel("CL")
+    ax.set_ylabel("µm")
+    ax.set_title("Static tool deflection along the program", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     save_figure(fig, path)

@@ -272,20 +272,31 @@ def test_stability_command(tmp_path) -> None:
     # a coefficients file: twice the cutting coefficients halve the ZOA limit
     coef = tmp_path / "k.json"
     coef.write_text(json.dumps({k: 2 * v for k, v in AL.as_dict().items()}))
-    r = CliRunner().invoke(app, args[:-1] + [str(tmp_path / "stab2"), "--coefficients", str(coef), "--no-sd"])
+    r = CliRunner().invoke(app, args[:-1] + [str(tmp_path / "stab2"), "--coefficients", str(coef), "--no-sd",
+                                              "--stick-out", "30"])
     assert r.exit_code == 0, r.output
     assert not (out / "lobes.png").exists()
-    for png in ("lobes.png", "margin.png"):
+    for png in ("lobes.png", "margin.png", "deflection.png"):
         assert mpimg.imread(tmp_path / "stab2" / png).shape[0] > 100
     half = pd.read_csv(tmp_path / "stab2" / "stability.csv")
     np.testing.assert_allclose(half["a_lim_zoa_mm"][:2], csv["a_lim_zoa_mm"][:2] / 2, rtol=1e-9)
     assert half["a_lim_sd_mm"][:2].isna().all()
+    # --stick-out: the static deflection of the tool (twice the coefficients) on a 30 mm cantilever
+    from fusioncut.analysis.deflection import SteppedCantilever, cl_deflection
+    from fusioncut.analysis.forces import CuttingCoefficients
+
+    double = CuttingCoefficients(**{k: 2 * v for k, v in AL.as_dict().items()})
+    d = cl_deflection(maps[1], t, double, SteppedCantilever.for_tool(t, 30.0), rpm=9000.0, dz=0.5)
+    assert half.loc[1, "tip_deflection_peak_um"] == pytest.approx(1e3 * d.tip_peak_mm, rel=1e-9)
+    assert half.loc[1, "sle_max_um"] == pytest.approx(1e3 * np.nanmax(d.sle_mm), rel=1e-9)
+    assert half.loc[3, ["tip_deflection_peak_um", "sle_max_um"]].isna().all() and "sle_min_um" not in csv
     # bad input: one line naming the file, exit code 2
     coef.write_text('{"ktc": 1}')
     bad_modes = tmp_path / "bad.json"
     bad_modes.write_text('{"x": [{"fn_hz": 600, "zeta": 0.03, "k_n_per_m": 0}]}')
     for extra, msg in (([ "--coefficients", str(coef)], f"{coef}: missing key(s)"),
                        (["--modes", str(bad_modes)], f"{bad_modes}: x[0]: mode k_n_per_m"),
-                       (["--rpm-min", "100"], "give both --rpm-min and --rpm-max")):
+                       (["--rpm-min", "100"], "give both --rpm-min and --rpm-max"),
+                       (["--stick-out", "0"], "stick-out must be > 0 mm")):
         r = CliRunner().invoke(app, args + extra)
         assert r.exit_code == 2 and msg in " ".join(r.output.split()), r.output
