@@ -304,7 +304,7 @@ class GCodeInterpreter:
         self._ended = False
         self._executed = 0
         self._step_moves: list[Move] = []
-        self.budget = MoveBudget(max_moves, self.source)
+        self.budget = MoveBudget(max_moves)
         self._move_room = self.budget.room(0)  # emitting a move with this many emitted passes the budget
         self._block_limit = self.budget.max_blocks or 1 << 62
         self._furthest = -1  # index of the furthest program line executed

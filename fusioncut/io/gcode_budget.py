@@ -39,20 +39,20 @@ MAX_ARC_TURNS = 1000
 
 
 class MoveBudget:
-    """The limits of one interpreter run and what has been spent of them.
+    """The limits of one interpreter run and the arc turns spent of them so far.
 
-    ``spent`` is the expanded size so far (moves plus extra arc turns); the interpreter counts each
-    move it emits through :meth:`room` and each block it executes against ``max_blocks``.
+    The interpreter holds the count of moves it emitted and of blocks it executed; the expanded size
+    is those moves plus ``extra_turns``. It asks :meth:`room` before emitting moves and compares the
+    blocks with ``max_blocks``.
     """
 
-    __slots__ = ("max_moves", "max_blocks", "source", "extra_turns")
+    __slots__ = ("max_moves", "max_blocks", "extra_turns")
 
-    def __init__(self, max_moves: int | None, source: str):
+    def __init__(self, max_moves: int | None):
         if max_moves is not None and (not isinstance(max_moves, int) or max_moves < 0):
             raise ValueError(f"max_moves must be a whole number >= 0 or None, not {max_moves!r}")
         self.max_moves = max_moves or None
         self.max_blocks = self.max_moves * BLOCKS_PER_MOVE + MIN_BLOCKS if self.max_moves else None
-        self.source = source
         self.extra_turns = 0
 
     def room(self, moves: int) -> int:
