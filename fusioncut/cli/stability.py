@@ -17,6 +17,7 @@ from typing import Any, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
 from fusioncut.cli.forces import _MATERIAL_HELP, _setup, _tool_info, _write_table
@@ -68,11 +69,11 @@ def stability(
 
     dyn, fits = read_dynamics(modes, n_modes)
     for d, fit in fits.items():
-        console.print(f"FRF {d}: {len(fit.modes)} mode(s) " + ", ".join(
+        console.print(f"FRF {escape(str(d))}: {len(fit.modes)} mode(s) " + ", ".join(
             f"{m.fn_hz:.1f} Hz zeta {m.zeta:.4f} k {m.k_n_per_m:.4g} N/m" for m in fit.modes)
             + f"; fit error {100 * fit.relative_rms_error:.2f} % (relative RMS)", highlight=False)
         if fit.relative_rms_error > 0.1:
-            console.print(f"[yellow]note:[/] the modal fit of {d} misses the FRF by "
+            console.print(f"[yellow]note:[/] the modal fit of {escape(str(d))} misses the FRF by "
                           f"{100 * fit.relative_rms_error:.0f} %: check the modes (--fit-modes)", highlight=False)
     if (rpm_min is None) != (rpm_max is None):
         raise InputError("give both --rpm-min and --rpm-max, or neither")
@@ -114,10 +115,10 @@ def stability(
             _plot_deflection(table, out / "deflection.png")
             wrote.append("deflection.png")
     chatter = known[known["margin"] >= 1.0]
-    console.print(f"stability of {len(known)} CL(s) ({s.coefficients.name or material}, Ktc "
+    console.print(f"stability of {len(known)} CL(s) ({escape(s.coefficients.name or material)}, Ktc "
                   f"{s.coefficients.ktc:g} N/mm²): {len(chatter)} with margin >= 1 (chatter predicted), largest "
                   f"margin {known['margin'].max() if len(known) else math.nan:.3g}", highlight=False)
-    console.print(f"wrote {', '.join(wrote)} in {out}", highlight=False)
+    console.print(f"wrote {', '.join(wrote)} in {escape(str(out))}", highlight=False)
 
 
 def _chosen_row(table: Any, cl: Optional[int]) -> Any:
