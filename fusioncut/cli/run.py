@@ -91,7 +91,7 @@ class _ProgressReporter:
         self.overall = self.bar.add_task("all operations", total=plan.total, completed=plan.start_at,
                                          rate="", eta="")
         for op, n in plan.expected.items():
-            self.tasks[op] = self.bar.add_task(f"  {op or '(no operation)'}", total=n,
+            self.tasks[op] = self.bar.add_task(f"  {escape(op) or '(no operation)'}", total=n,
                                                completed=plan.done.get(op, 0), rate="", eta="")
         self.last = time.monotonic()
 

@@ -59,3 +59,15 @@ def test_forces_and_stability_print_bracketed_folders_literally(tmp_path: Path) 
                            env={"COLUMNS": "400"})
     assert r.exit_code == 0, r.output
     assert f"in {out}" in r.output.replace("\n", "")
+
+
+def test_run_progress_bars_show_bracketed_operation_names_literally() -> None:
+    from rich.progress import Progress, TextColumn
+
+    console = Console(width=120, record=True, color_system=None)
+    bar = Progress(TextColumn("{task.description}"), console=console)
+    reporter = run_cli._ProgressReporter(bar)
+    reporter.on_start(SimpleNamespace(total=3, start_at=0, expected={"Contour [d2.4mm]": 2, "": 1}, done={}))
+    console.print(bar.get_renderable())
+    text = console.export_text()
+    assert "  Contour [d2.4mm]" in text and "(no operation)" in text
