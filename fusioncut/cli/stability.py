@@ -4,8 +4,9 @@ Writes ``stability.csv`` / ``stability.parquet`` (columns
 :data:`fusioncut.analysis.stability.STABILITY_COLUMNS`), ``lobes.png`` (ZOA and SD limit against the
 spindle speed for one CL, with every CL's (speed, ap) point of the same tool over it) and
 ``margin.png`` (ap / a_lim along the program); with ``--stick-out`` also the static deflection columns
-(:data:`fusioncut.analysis.deflection.DEFLECTION_COLUMNS`) and ``deflection.png``. The spindle speed, flute count and helix come as for
-``fusioncut forces`` (``--program`` or ``--rpm``/``--flutes``/``--helix``); the cutting coefficients
+(:data:`fusioncut.analysis.deflection.DEFLECTION_COLUMNS`) and ``deflection.png``. The spindle speed,
+flute count and helix come as for ``fusioncut forces`` (``--program`` or ``--rpm``/``--flutes``/
+``--helix``); the cutting coefficients
 from ``--material`` or a coefficients file (``--coefficients``, JSON, see
 :func:`fusioncut.analysis.calibrate.read_coefficients_json`).
 """
