@@ -39,7 +39,7 @@ export class JobView {
     this.clLabel = h("span", { id: "cl-number", class: "cl-number" }, "–");
     this.status = h("span", { id: "mesh-state", class: "muted small" });
     this.info = h("div", { class: "cl-info small", id: "cl-info" });
-    this.polar = h("img", { class: "plot polar", alt: "polar plot of the CL", id: "plot-polar" });
+    this.polar = h("img", { class: "plot polar", alt: "polar plot of the CL", id: "plot-polar", hidden: true });
     this.legend = h("div", { class: "legend small", id: "view-legend" });
     container.append(
       h("div", { class: "view-row" }, this.canvas, this.legend),
@@ -69,6 +69,7 @@ export class JobView {
     this.urls = [];
     this.request = 0;
     this.following = true; // a running job: show the latest finished CL until the user picks one
+    this.meshPending = null; // the CL whose workpiece is being computed
     this.disposed = false;
     let timer = null;
     this.slider.addEventListener("input", () => {
@@ -123,7 +124,9 @@ export class JobView {
     const n = this.data.cls.cl.length;
     if (n !== before && this.following) {
       this.slider.value = String(n - 1);
-      await this.select(n - 1);
+      // one replay at a time: ask for the latest CL's workpiece once the last one asked for is shown
+      if (this.meshPending === null) await this.select(n - 1);
+      else await this.showLatest(n - 1);
     } else {
       this.draw();
     }
@@ -180,37 +183,73 @@ export class JobView {
     this.controls.update();
   }
 
+  // Show CL `index`: its tool, arcs and info as soon as the service answers; the workpiece after it
+  // when its mesh is ready (polled in the background while a worker replays the job to it).
   async select(index) {
     const cl = this.clAt(index);
     const ticket = ++this.request; // a slow answer for an earlier CL must not overwrite a later one
     this.clLabel.textContent = String(cl);
-    for (;;) {
-      const r = await api(`/api/jobs/${this.jobId}/scene?cl=${cl}`);
-      const s = await r.json();
-      if (ticket !== this.request || this.disposed) return;
-      if (s.state === "pending") {
-        if (this.canvas.dataset.cl !== String(cl)) this.showCl(s);
-        this.status.textContent = `computing the workpiece after CL ${cl}…`;
+    const s = await this.askScene(cl);
+    if (ticket !== this.request || this.disposed) return;
+    this.showCl(s);
+    if (s.state === "pending") this.pollMesh(cl, ticket);
+    else await this.meshAnswer(s, ticket);
+  }
+
+  async askScene(cl) {
+    return (await api(`/api/jobs/${this.jobId}/scene?cl=${cl}`)).json();
+  }
+
+  async pollMesh(cl, ticket) {
+    this.meshPending = cl;
+    this.status.textContent = `computing the workpiece after CL ${cl}…`;
+    try {
+      for (;;) {
         await new Promise((res) => setTimeout(res, POLL_MS));
         if (ticket !== this.request || this.disposed) return;
-        continue;
-      }
-      if (s.state === "ready") {
-        const glb = await (await api(s.mesh)).arrayBuffer();
+        const s = await this.askScene(cl);
         if (ticket !== this.request || this.disposed) return;
-        await this.showWorkpiece(glb, cl);
-        this.status.textContent = "";
-      } else {
-        this.status.textContent = `workpiece after CL ${cl}: ${s.message}`;
+        if (s.state !== "pending") {
+          await this.meshAnswer(s, ticket);
+          return;
+        }
       }
-      this.showCl(s);
+    } catch (err) {
+      if (ticket === this.request) this.status.textContent = `workpiece after CL ${cl}: ${err.message}`;
+    } finally {
+      if (this.meshPending === cl) this.meshPending = null;
+    }
+  }
+
+  async meshAnswer(s, ticket) {
+    if (s.state !== "ready") {
+      this.status.textContent = `workpiece after CL ${s.cl}: ${s.message}`;
       return;
     }
+    const glb = await (await api(s.mesh)).arrayBuffer();
+    if (ticket !== this.request || this.disposed) return;
+    await this.showWorkpiece(glb, s.cl);
+    const shown = this.canvas.dataset.cl;
+    this.status.textContent = shown === String(s.cl) ? "" : `the workpiece is shown after CL ${s.cl}; later ones are being computed`;
+  }
+
+  // A running job's latest CL while the workpiece of an earlier one is still being computed: its tool
+  // and info from the results (no replay asked for), the workpiece stays the one being computed.
+  async showLatest(index) {
+    const cl = this.clAt(index);
+    const d = await getJSON(`/api/jobs/${this.jobId}/cls/${cl}`);
+    if (this.disposed || !this.following) return;
+    const row = d.cl;
+    const spec = this.data.tools[row.tool] || {};
+    this.clLabel.textContent = String(cl);
+    this.showCl({ cl, total: this.total, contact: row, slices: d.slices,
+      tool: { ...spec, position_mm: [row.x, row.y, row.z] } });
   }
 
   // The tool, arcs and info of a CL (from the results: known at once, before the mesh).
   showCl(s) {
     const row = s.contact;
+    this.total = s.total;
     // the exact tool of the CL's GLB, once shown, stays; until then a cylinder (or ball) stands in
     const exact = this.groups.tool.children.some((o) => o.name === "glb-tool" && o.userData.cl === s.cl);
     if (!exact) this.placeTool(s.tool);
@@ -231,6 +270,7 @@ export class JobView {
       const u = URL.createObjectURL(b);
       this.urls.push(u);
       this.polar.src = u;
+      this.polar.hidden = false;
     }).catch(() => {});
   }
 

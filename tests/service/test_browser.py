@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from service_helpers import KEY_A, TINY_GCODE, tiny_submission, tiny_total, wait_for
+from service_helpers import KEY_A, TINY_GCODE, medium_submission, tiny_submission, tiny_total, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
@@ -139,7 +139,7 @@ def test_upload_a_job_watch_it_and_see_it_in_3d(browser, service, tmp_path):
     page, problems = _open(browser, service)
     page.goto(service.url + "/#/new")
     page.set_input_files("input[name=toolpath]",
-                         files=[{"name": "slot.nc", "mimeType": "text/plain", "buffer": TINY_GCODE.encode()}])
+                         files=[{"name": "résumé.nc", "mimeType": "text/plain", "buffer": TINY_GCODE.encode()}])
     page.fill("input[name=name]", "browser job")
     row = page.locator(".tool-row").first
     row.locator("[name=t_number]").fill("1")
@@ -157,6 +157,38 @@ def test_upload_a_job_watch_it_and_see_it_in_3d(browser, service, tmp_path):
     ops = page.locator("#summary-table tbody tr td:first-child").all_inner_texts()
     assert ops == ["Slot", "Side"]
     page.wait_for_function("document.querySelector('#plot-program') && document.querySelector('#plot-program').naturalWidth > 0")
+    assert not problems, problems
+
+
+def test_a_running_job_shows_its_latest_cl_and_plots_so_far(browser, service, tmp_path):
+    with service.client() as c:
+        # a ball end mill on CLs of 0.06 mm: about 1,800 CLs (the test service takes 2,000), long enough
+        # to be watched while it runs and cancelled before it ends
+        r = c.post("/api/jobs", json=medium_submission("running", segment=0.06, checkpoint_every=1000))
+        assert r.status_code == 201, r.text
+        job_id = r.json()["id"]
+        page, problems = _open(browser, service)
+        page.goto(f"{service.url}/#/jobs/{job_id}")
+        page.wait_for_selector("#job-state:text-is('running')", timeout=60_000)
+        page.wait_for_function("document.querySelector('canvas#view3d') && document.querySelector('canvas#view3d')"
+                               ".dataset.cl !== undefined", timeout=60_000)
+        page.wait_for_function("document.querySelector('#plot-program') && "
+                               "document.querySelector('#plot-program').naturalWidth > 0", timeout=60_000)
+        shown = int(page.locator("canvas#view3d").get_attribute("data-cl"))
+        state = c.get(f"/api/jobs/{job_id}").json()
+        page.screenshot(path=str(tmp_path / "running.png"), full_page=True)
+        # the view follows the job: a later CL is drawn as more are finished
+        page.wait_for_function(f"Number(document.querySelector('canvas#view3d').dataset.cl) > {shown}",
+                               timeout=60_000)
+        running = page.locator("#job-state").inner_text() == "running"
+        cancel = page.locator("#cancel-button")
+        assert cancel.get_attribute("class") == "danger"  # stopping a job for good looks destructive
+        if running:
+            cancel.click()
+        final = wait_for(c, job_id)
+    assert state["state"] == "running" and shown < state["progress"]["total"] - 1, (shown, state)
+    assert running, "the job ended before the view followed it: make it longer"
+    assert final["state"] == "cancelled"
     assert not problems, problems
 
 

@@ -57,6 +57,13 @@ export function render(root, { params }) {
     const now = Date.now();
     if (live && now - live.viewAt < LIVE_VIEW_MS) return;
     if (!live) {
+      // the first CLs reach the result tables a little after the progress counts them: ask for
+      // plots and the scene once the table is there (a 404 would be an error in the console)
+      live = { busy: true, viewAt: now };
+      const ready = await getJSON(`/api/jobs/${id}/files`).then((l) => l.files.some((f) => f.name === "cl.parquet"),
+        () => false);
+      live = null;
+      if (!ready || loaded) return;
       const plots = h("section", { class: "card plots" }, h("h2", {}, "Engagement so far"));
       const viewCard = h("section", { class: "card" }, h("h2", {}, "3D view (latest finished CL)"));
       const imgs = ["program", "heatmap"].map((kind) => h("img", { alt: `${kind} plot`, class: "plot", id: `plot-${kind}` }));
