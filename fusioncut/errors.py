@@ -41,6 +41,11 @@ class InputError(FusionCutError):
         super().__init__(f"{where}: {message}" if where is not None else message)
 
 
+class JobTooLarge(InputError):
+    """A job that would make more work than its budget allows (:class:`fusioncut.engines.sizing.Budget`),
+    or an option below its lower bound: refused before anything is expanded."""
+
+
 class ToolDefinitionError(InputError):
     """A tool whose geometry we cannot model (unknown type, impossible dimensions)."""
 

@@ -41,6 +41,7 @@ from fusioncut import __version__
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.segments import segments_for
+from fusioncut.engines.sizing import Budget, size_toolpath
 from fusioncut.errors import FusionCutError, InputError
 from fusioncut.io import tool_sources
 from fusioncut.io.job import RUN_OPTIONS, Job, build_stock, job_hash, read_toolpath
@@ -217,7 +218,7 @@ def prepare_job(job: Job, base: Path) -> PreparedJob:
 
 def run_job(job: Job, base: Path, out_dir: Path, on_cl: Callable[[EngagementMap, int], None] | None = None,
             resume: bool = True, *, export_ipw: bool = True,
-            on_start: Callable[[RunPlan], None] | None = None) -> RunResult:
+            on_start: Callable[[RunPlan], None] | None = None, budget: Budget | None = None) -> RunResult:
     """Run ``job`` (paths relative to ``base``) into ``out_dir``; see the module docstring.
 
     ``resume``: continue from a checkpoint of the same job in ``out_dir`` (``False``: start over).
@@ -228,14 +229,15 @@ def run_job(job: Job, base: Path, out_dir: Path, on_cl: Callable[[EngagementMap,
 
     To stop a run from outside (a service cancelling a job), raise ``KeyboardInterrupt`` in
     ``on_cl``: the run returns with ``interrupted=True`` and a checkpoint after that CL. Any other
-    exception from ``on_cl`` also leaves a checkpoint and is then raised.
+    exception from ``on_cl`` also leaves a checkpoint and is then raised. ``budget``: see
+    :func:`run_toolpath`.
     """
     p = prepare_job(job, base)
     options = replace(p.options, failure_dir=Path(out_dir) / "failures")
     return run_toolpath(p.toolpath, p.stock, out_dir, options, default_tool=p.default_tool, job_id=p.job_id,
                         on_cl=on_cl, resume=resume, checkpoint_every=p.checkpoint_every,
                         snapshot_cls=p.snapshot_cls, export_ipw=export_ipw, on_start=on_start, workers=p.workers,
-                        scheduler=p.scheduler)
+                        scheduler=p.scheduler, budget=budget)
 
 
 def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: EngineOptions | None = None,
@@ -243,7 +245,7 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
                  on_cl: Callable[[EngagementMap, int], None] | None = None, *, resume: bool = False,
                  checkpoint_every: int = DEFAULT_CHECKPOINT_EVERY, snapshot_cls: Iterable[int] = (),
                  export_ipw: bool = True, on_start: Callable[[RunPlan], None] | None = None,
-                 workers: int = 1, scheduler: str | None = None) -> RunResult:
+                 workers: int = 1, scheduler: str | None = None, budget: Budget | None = None) -> RunResult:
     """Run every CL of ``toolpath`` on ``stock``, writing results into ``out_dir`` as they come.
 
     ``on_cl(map, total)`` is called after each CL (progress reporting). ``resume`` continues from a
@@ -254,6 +256,9 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
     ``workers`` > 1 runs the CLs on an embedded Dask cluster of that many worker processes,
     ``scheduler`` on the workers of a running Dask scheduler (see
     :mod:`fusioncut.engines.brep.parallel`); the cluster is closed when the run ends, however it ends.
+    ``budget`` (default :class:`~fusioncut.engines.sizing.Budget`): the job is sized from its moves
+    first and refused (:class:`~fusioncut.errors.JobTooLarge`) before anything is expanded or written
+    when it would make more work than that.
     """
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
@@ -264,7 +269,7 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
         engine = _engine(options, workers, scheduler)
         try:
             result = _run(engine, ctrl_c, toolpath, stock, out_dir, default_tool, job_id, on_cl, resume,
-                          checkpoint_every, snapshot_cls, export_ipw, on_start)
+                          checkpoint_every, snapshot_cls, export_ipw, on_start, budget)
         finally:
             if not isinstance(engine, BRepEngine):
                 engine.close()
@@ -311,8 +316,9 @@ def _inside_dask_worker() -> bool:
 def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir: Path,
          default_tool: MillingTool | None, job_id: str, on_cl: Callable[[EngagementMap, int], None] | None,
          resume: bool, checkpoint_every: int, snapshot_cls: Iterable[int], export_ipw: bool,
-         on_start: Callable[[RunPlan], None] | None) -> RunResult:
+         on_start: Callable[[RunPlan], None] | None, budget: Budget | None = None) -> RunResult:
     options = engine.options
+    size_toolpath(toolpath, options, default_tool, checkpoint_every, snapshot_cls, budget)
     segments = segments_for(toolpath.moves, options)
     total = len(segments)
     expected: dict[str, int] = {}

@@ -28,6 +28,7 @@ from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
 from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.sizing import Budget
 from fusioncut.model import EngagementMap
 
 console = Console()
@@ -151,6 +152,9 @@ LOG_LEVEL_HELP = "log file level; debug records every CL (source file:line, stat
 IPW_HELP = "write the final workpiece as ipw.step and ipw.stl into the results folder"
 WORKERS_HELP = ("run on an embedded Dask cluster of N worker processes, each owning a share of the workpiece's "
                 "cells (20 mm cells if the job sets cell_size to null); overrides the job's options.workers")
+MAX_CLS_HELP = ("refuse a job that makes more CL segments than this (counted from its moves before anything "
+                "is expanded)")
+MAX_SLICES_HELP = "refuse a job that evaluates more slices (per CL: flute length / slice_height) than this"
 SCHEDULER_HELP = ("run on every worker of a running Dask scheduler (e.g. tcp://host:8786); wins over "
                   "--workers; overrides the job's options.scheduler")
 
@@ -189,7 +193,10 @@ def register(app: typer.Typer) -> None:
             # a string: the job's validation refuses a bad count in one line, as in a job file
             workers: Optional[str] = typer.Option(None, "--workers", metavar="N", help=WORKERS_HELP),
             scheduler: Optional[str] = typer.Option(None, "--scheduler", metavar="ADDRESS",
-                                                    help=SCHEDULER_HELP)) -> None:
+                                                    help=SCHEDULER_HELP),
+            max_cls: int = typer.Option(Budget.max_cls, "--max-cls", min=1, metavar="N", help=MAX_CLS_HELP),
+            max_slices: int = typer.Option(Budget.max_slices, "--max-slices", min=1, metavar="N",
+                                           help=MAX_SLICES_HELP)) -> None:
         """Run a job file; an interrupted run of the same job continues from its checkpoint."""
         from fusioncut.io.job import load_job, with_run_options
         from fusioncut.runner import run_job
@@ -200,8 +207,9 @@ def register(app: typer.Typer) -> None:
         out = out or Path("fusioncut-out") / job.name
         # a resumed run appends to the log of the run it continues
         with _logging(log_file or out / "fusioncut.log", log_level, append=not fresh):
+            budget = Budget(max_cls=max_cls, max_slices=max_slices)
             result = _run_with_progress(lambda **cb: run_job(job, base, out, resume=not fresh,
-                                                             export_ipw=ipw_export, **cb))
+                                                             export_ipw=ipw_export, budget=budget, **cb))
         _print_summary(result)
 
     @app.command()

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, Protocol
 
+from fusioncut.errors import JobTooLarge
 from fusioncut.model.engagement import EngagementMap
 from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool
@@ -59,6 +60,17 @@ class EngineOptions:
     turn on the Titan-like benchmark): its first helix and the trochoids after it (CLs 997-1596)
     took 14.2 s with 6 (the bore's cells solid), 10.2 s with 30 and 3.0 s with 100 (all layered),
     with the same maps CL by CL.
+
+    Lower bounds (:data:`LOWER_BOUNDS`, checked when the options are made, before any move is
+    expanded): 1e-3 mm for ``max_segment_length``, ``ramp_step`` and ``slice_height``, 1e-5 mm for
+    ``chord_tolerance``. Below them a value buys no accuracy and only multiplies the work: 1 µm is
+    the kernel's own working precision scale (the Booleans' fuzzy values are 1e-6 to 1e-4 mm) and
+    posts write coordinates to 1 µm (3 decimals) or 0.1 µm, so CLs, steps or slices closer than that
+    are closer than the program itself says where the tool is; a chord's sagitta of 1e-5 mm is a
+    hundredth of the default and ten times the Booleans' default fuzzy value (a 5 mm arc then takes
+    1,571 chords a turn). ``max_segment_length: 1e-5`` on a 5-line job once took 57 s and 1.8 GB
+    before it was refused; how much work a job makes within the bounds is sized by
+    :mod:`fusioncut.engines.sizing`.
     """
 
     slice_height: float = 1.0
@@ -75,6 +87,17 @@ class EngineOptions:
     ceiling_pixel: float | None = 0.1
     layers: bool = True
     max_layers: int = 128
+
+    def __post_init__(self) -> None:
+        for name, low in LOWER_BOUNDS.items():
+            value = getattr(self, name)
+            if value is not None and not value >= low:
+                raise JobTooLarge(f"options.{name}: {value:g} mm is below its lower bound of {low:g} mm "
+                                  "(finer buys no accuracy, only work; see EngineOptions)")
+
+
+# mm; EngineOptions' docstring says why these values
+LOWER_BOUNDS = {"max_segment_length": 1e-3, "ramp_step": 1e-3, "slice_height": 1e-3, "chord_tolerance": 1e-5}
 
 
 class EngagementEngine(Protocol):
