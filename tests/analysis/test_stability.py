@@ -19,6 +19,7 @@ from fusioncut.analysis.stability import (STABILITY_COLUMNS, ModalSystem, chatte
                                           nearest_stable_rpm, sd_a_lim, sd_spectral_radius, zoa_a_lim, zoa_lobes)
 from fusioncut.errors import GeometryError
 from fusioncut.model import AngleInterval, CLStatus, EngagementMap, FlatEndMill, SliceEngagement, SpindleDirection
+from test_forces_real_program import run  # noqa: F401  (the fixture: one engine run of a real program)
 
 FN, ZETA, MASS = 922.0, 0.011, 0.03993
 K = MASS * (2 * math.pi * FN) ** 2
@@ -81,6 +82,15 @@ def test_directional_factors_closed_forms() -> None:
     assert m4 == pytest.approx(mir @ half @ mir, abs=1e-12)
     with pytest.raises(GeometryError):
         cl_directional(emap([(0, 180)], status=CLStatus.FAILED), tool(), COEF)
+    # on a ball the band [1, 2] mm runs from radius 3 to 4 mm: lead angle 45 deg, Kr = (Krc - Kac) / (sqrt 2 Ktc)
+    from fusioncut.analysis.materials import AL7075_T6_CARBIDE as AL
+    from fusioncut.model import BallEndMill
+
+    ball = EngagementMap(0, (1, 0, 0), (0, 0, 0), "T2", SpindleDirection.CW, 0.0, CLStatus.ENGAGED, feed=1.0,
+                         slices=(SliceEngagement(1.5, 0.0, 3.5, (AngleInterval(90, 180),)),), axial_range=(1.0, 2.0))
+    got = cl_directional(ball, BallEndMill(diameter=10.0, flute_length=20.0), AL, dz=1.0).alpha0
+    assert got == pytest.approx(altintas_alpha(math.pi / 2, math.pi, (AL.krc - AL.kac) / (math.sqrt(2) * AL.ktc)),
+                                abs=1e-12)
 
 
 def characteristic_roots(alpha_xx: float, rpm: float, flutes: int) -> float:
@@ -300,3 +310,37 @@ def test_stability_command(tmp_path) -> None:
                        (["--stick-out", "0"], "stick-out must be > 0 mm")):
         r = CliRunner().invoke(app, args + extra)
         assert r.exit_code == 2 and msg in " ".join(r.output.split()), r.output
+
+
+# --------------------------------------------------------------------------------------------------
+# a real program: the first CLs of the Fusion-posted 2D adaptive 1055_utab_265bit.nc (2.65 mm flat end
+# mill, S5000), run once per session by the force tests' fixture
+
+
+def test_real_program_limits_from_saved_tables(run) -> None:
+    from fusioncut.analysis.forces import engagement_maps_from_results, infer_slice_height
+    from fusioncut.analysis.stability import stability_table
+    from fusioncut.io.results import load_results
+    from test_forces_real_program import SLICE, _is_slot
+
+    full, maps, out = run
+    t = full.tools[1]
+    iso = ToolDynamics((Mode(3200.0, 0.02, 1.5e7),), (Mode(3200.0, 0.02, 1.5e7),))
+    rpm = [5000.0] * len(maps)
+    direct = stability_table(maps, t, COEF, iso, rpm, dz=SLICE, sd=False)
+    results = load_results(out)
+    dz = infer_slice_height(results)
+    assert dz == SLICE
+    rebuilt = stability_table(engagement_maps_from_results(results, dz), t, COEF, iso, rpm, dz=dz, sd=False)
+    for col in ("a_lim_zoa_mm", "margin", "nearest_stable_rpm", "ap_mm"):
+        np.testing.assert_allclose(rebuilt[col], direct[col], rtol=1e-9, equal_nan=True)
+    # every full slot (2 mm, one arc 0..180 deg per slice), whatever its feed direction, has the limit of
+    # the closed-form slot factors: with the same modes along x and y the feed direction cannot matter
+    slots = [i for i, m in enumerate(maps) if _is_slot(m)]
+    assert len(slots) > 20 and len({round(maps[i].feed_angle, 3) for i in slots}) >= 2
+    alpha = np.array([[-KR * math.pi, -math.pi], [math.pi, -KR * math.pi]])
+    want = zoa_a_lim(alpha, chatter_grid(iso), KTC, t.flutes, 5000.0)[0]
+    np.testing.assert_allclose(direct.loc[slots, "a_lim_zoa_mm"], want, rtol=1e-9)
+    np.testing.assert_allclose(direct.loc[slots, "margin"], 2.0 / want, rtol=1e-9)
+    engaged = direct["status"] == "engaged"
+    assert np.all(np.isfinite(direct.loc[engaged, "margin"])) and direct.loc[~engaged, "margin"].fillna(0).eq(0).all()
