@@ -19,7 +19,7 @@ from fusioncut.analysis.stability import (STABILITY_COLUMNS, ModalSystem, chatte
                                           nearest_stable_rpm, sd_a_lim, sd_spectral_radius, zoa_a_lim, zoa_lobes)
 from fusioncut.errors import GeometryError
 from fusioncut.model import AngleInterval, CLStatus, EngagementMap, FlatEndMill, SliceEngagement, SpindleDirection
-from test_forces_real_program import run  # noqa: F401  (the fixture: one engine run of a real program)
+from test_forces_real_program import PROGRAM, run  # noqa: F401  (the fixture: one engine run of a real program)
 
 FN, ZETA, MASS = 922.0, 0.011, 0.03993
 K = MASS * (2 * math.pi * FN) ** 2
@@ -317,6 +317,7 @@ def test_stability_command(tmp_path) -> None:
 # mill, S5000), run once per session by the force tests' fixture
 
 
+@pytest.mark.skipif(not PROGRAM.exists(), reason="shared test data not available")
 def test_real_program_limits_from_saved_tables(run) -> None:
     from fusioncut.analysis.forces import engagement_maps_from_results, infer_slice_height
     from fusioncut.analysis.stability import stability_table
