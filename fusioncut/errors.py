@@ -42,8 +42,9 @@ class InputError(FusionCutError):
 
 
 class JobTooLarge(InputError):
-    """A job that would make more work than its budget allows (:class:`fusioncut.engines.sizing.Budget`),
-    or an option below its lower bound: refused before anything is expanded."""
+    """A job that would make more work than its budget allows (:class:`fusioncut.engines.sizing.Budget`,
+    or a G-code program beyond its reader's ``max_moves``, :mod:`fusioncut.io.gcode_budget`), or an
+    option below its lower bound: refused before anything is expanded."""
 
 
 class ToolDefinitionError(InputError):

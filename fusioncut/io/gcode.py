@@ -94,7 +94,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterator, Literal, Mapping
 
-from fusioncut.errors import InputError, SourceLocation, ToolDefinitionError
+from fusioncut.errors import InputError, JobTooLarge, SourceLocation, ToolDefinitionError
 from fusioncut.io import gcode_comp
 from fusioncut.io.gcode_budget import DEFAULT_MAX_MOVES, MAX_ARC_TURNS, MoveBudget, may_leave_early
 from fusioncut.io.gcode_comp import CompState
@@ -701,7 +701,7 @@ class GCodeInterpreter:
         first = (len(self.moves) + self.budget.extra_turns - moves0, self._executed - blocks0)
         try:
             self.budget.check_repeat(spent, first, frame.repeats[i], frame.repeats[i] + 1, where)
-        except InputError:
+        except JobTooLarge:
             if not may_leave_early(self._block(j) for j in range(i + 1, end)):
                 raise
 
@@ -1484,7 +1484,7 @@ class GCodeInterpreter:
             if p_turns < 1 or p_turns != math.floor(p_turns):
                 raise InputError(f"arc P (turns) must be a whole number >= 1, got P{p_turns:g}", loc)
             if p_turns > MAX_ARC_TURNS:
-                raise InputError(f"arc P{p_turns:g}: more than {MAX_ARC_TURNS:,} turns in one block", loc)
+                raise JobTooLarge(f"arc P{p_turns:g}: more than {MAX_ARC_TURNS:,} turns in one block", loc)
             turns = int(p_turns) - 1
             if turns:
                 # each extra turn counts as a move of the budget (see gcode_budget)

@@ -2,7 +2,7 @@
 
 A few bytes of G-code can ask for unbounded work: ``o100 repeat [1000000]`` around two moves, or an
 arc of ``P100000`` turns that everything downstream (CL segments, the engine) works through turn by
-turn. The interpreter refuses such programs with an :class:`~fusioncut.errors.InputError` naming
+turn. The interpreter refuses such programs with a :class:`~fusioncut.errors.JobTooLarge` naming
 ``file:line`` and the count, before the work is done where the count is known in advance:
 
 * the moves a block expands to (canned cycle repeats and pecks, spline chords, an arc's turns) are
@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import Iterable
 
-from fusioncut.errors import InputError, SourceLocation
+from fusioncut.errors import JobTooLarge, SourceLocation
 from fusioncut.io.gcode_parse import Block
 
 __all__ = ["BLOCKS_PER_MOVE", "DEFAULT_MAX_MOVES", "MAX_ARC_TURNS", "MIN_BLOCKS", "MoveBudget", "may_leave_early"]
@@ -61,8 +61,8 @@ class MoveBudget:
             return 1 << 62
         return self.max_moves - self.extra_turns - moves
 
-    def refuse(self, what: str, where: SourceLocation) -> InputError:
-        return InputError(f"the program expands to more than {self.max_moves:,} moves ({what}); "
+    def refuse(self, what: str, where: SourceLocation) -> JobTooLarge:
+        return JobTooLarge(f"the program expands to more than {self.max_moves:,} moves ({what}); "
                           "raise max_moves to allow it", where)
 
     def check(self, moves: int, n: int, what: str, where: SourceLocation) -> None:
@@ -72,7 +72,7 @@ class MoveBudget:
 
     def check_blocks(self, executed: int, where: SourceLocation) -> None:
         if self.max_blocks is not None and executed > self.max_blocks:
-            raise InputError(f"the program executes more than {self.max_blocks:,} blocks (an endless "
+            raise JobTooLarge(f"the program executes more than {self.max_blocks:,} blocks (an endless "
                              "O-word loop?); raise max_moves to allow it", where)
 
     def check_repeat(self, spent: tuple[int, int], first_pass: tuple[int, int], passes_left: int,
@@ -86,7 +86,7 @@ class MoveBudget:
             raise self.refuse(f"a repeat loop of {passes:,} × {moves:,}", where)
         assert self.max_blocks is not None
         if spent[1] + blocks * passes_left > self.max_blocks:
-            raise InputError(f"the program executes more than {self.max_blocks:,} blocks (a repeat loop "
+            raise JobTooLarge(f"the program executes more than {self.max_blocks:,} blocks (a repeat loop "
                              f"of {passes:,} × {blocks:,}); raise max_moves to allow it", where)
 
 

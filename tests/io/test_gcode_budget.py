@@ -1,13 +1,14 @@
 """The interpreter's work budget (fusioncut.io.gcode_budget): a short program cannot ask for unbounded
 work. Programs of a few bytes that expand to millions of moves are refused before they expand (no
-timing asserts: the peak allocation while refusing them shows that nothing was expanded)."""
+timing asserts: the peak allocation while refusing them shows that nothing was expanded). The refusal
+is a JobTooLarge, as for the jobs the engine's sizing refuses."""
 from __future__ import annotations
 
 import tracemalloc
 
 import pytest
 
-from fusioncut.errors import InputError
+from fusioncut.errors import JobTooLarge
 from fusioncut.io.gcode import parse_gcode_text
 from fusioncut.io.gcode_budget import BLOCKS_PER_MOVE, MIN_BLOCKS
 from fusioncut.model.moves import ArcMove, Toolpath
@@ -22,7 +23,7 @@ def run(text: str, **kw) -> Toolpath:
 def refused_within_memory(text: str, match: str, **kw) -> None:
     tracemalloc.start()
     try:
-        with pytest.raises(InputError, match=match):
+        with pytest.raises(JobTooLarge, match=match):
             run(text, **kw)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
@@ -60,7 +61,7 @@ def test_a_repeat_loop_under_the_limit_reads_and_the_limit_is_exact() -> None:
     assert len(tp.moves) == 2000
     assert [m.end[0] for m in tp.moves[:4]] == [1.0, 0.0, 1.0, 0.0]
     assert len(run(text, max_moves=2000).moves) == 2000
-    with pytest.raises(InputError, match=r"^prog\.nc:2:1: the program expands to more than 1,999 moves "
+    with pytest.raises(JobTooLarge, match=r"^prog\.nc:2:1: the program expands to more than 1,999 moves "
                                          r"\(a repeat loop of 1,000 × 2\)"):
         run(text, max_moves=1999)
     # no limit
@@ -77,17 +78,17 @@ def test_a_loop_that_breaks_early_is_not_refused_in_advance() -> None:
 def test_while_loops_stop_at_the_limit_itself() -> None:
     text = "#1 = 0\nF100\no1 while [#1 lt 2000]\nG1 X[#1 mod 2 + 1]\n#1 = [#1 + 1]\no1 endwhile\n"
     assert len(run(text, max_moves=2000).moves) == 2000
-    with pytest.raises(InputError, match=r"^prog\.nc:4:1: the program expands to more than 1,999 moves "
+    with pytest.raises(JobTooLarge, match=r"^prog\.nc:4:1: the program expands to more than 1,999 moves "
                                          r"\(at this block\); raise max_moves"):
         run(text, max_moves=1999)
 
 
 def test_blocks_that_move_nothing_are_bounded_too() -> None:
     limit = 10 * BLOCKS_PER_MOVE + MIN_BLOCKS
-    with pytest.raises(InputError, match=rf"^prog\.nc:3:1: the program executes more than {limit:,} blocks "
+    with pytest.raises(JobTooLarge, match=rf"^prog\.nc:3:1: the program executes more than {limit:,} blocks "
                                          r"\(a repeat loop of 1,000,000 × 3\)"):
         run("#1 = 0\nG0 X1\no1 repeat [1000000]\n#1 = [#1 + 1]\no1 endrepeat\n", max_moves=10)
-    with pytest.raises(InputError, match=rf"more than {limit:,} blocks \(an endless O-word loop\?\)"):
+    with pytest.raises(JobTooLarge, match=rf"more than {limit:,} blocks \(an endless O-word loop\?\)"):
         run("o1 while [1]\n#1 = [#1 + 1]\no1 endwhile\n", max_moves=10)
 
 
@@ -95,7 +96,7 @@ def test_expanding_blocks_are_checked_against_the_program_budget() -> None:
     # a G81 with 30 repeats makes 8 moves a repeat here (LinuxCNC's expansion)
     cycle = "G0 X0 Y0 Z5\nG91 G81 X1 Z-2 R1 L30 F100\n"
     assert len(run(cycle).moves) > 30
-    with pytest.raises(InputError, match=r"^prog\.nc:2:5: the program expands to more than 100 moves "
+    with pytest.raises(JobTooLarge, match=r"^prog\.nc:2:5: the program expands to more than 100 moves "
                                          r"\(this block makes 240\)"):
         run(cycle, max_moves=100)
 
@@ -104,7 +105,7 @@ def test_arc_turns_within_the_limits_read() -> None:
     tp = run("G0 X5\nG2 X5 Y0 I-5 J0 P1000 F100\n")
     arc = tp.moves[-1]
     assert isinstance(arc, ArcMove) and arc.turns == 999
-    with pytest.raises(InputError, match=r"^prog\.nc:2:1: .*more than 500 moves \(an arc of 1,000 turns\)"):
+    with pytest.raises(JobTooLarge, match=r"^prog\.nc:2:1: .*more than 500 moves \(an arc of 1,000 turns\)"):
         run("G0 X5\nG2 X5 Y0 I-5 J0 P1000 F100\n", max_moves=500)
 
 
