@@ -66,6 +66,9 @@ def _wait_done_in_list(page, name: str, timeout_ms: int) -> None:
 
 def _check_3d_view(page, shot: Path) -> None:
     page.wait_for_selector("canvas#view3d[data-ready='1']", timeout=60_000)
+    # the workpiece after the CL shown (the last) has arrived: a worker replayed the job to it
+    page.wait_for_function("(c => c.dataset.mesh === c.dataset.cl)(document.querySelector('canvas#view3d'))",
+                           timeout=120_000)
     page.wait_for_selector("#summary-table tbody tr")
     canvas = page.locator("canvas#view3d")
     canvas.scroll_into_view_if_needed()

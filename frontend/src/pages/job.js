@@ -57,11 +57,13 @@ export function render(root, { params }) {
     const now = Date.now();
     if (live && now - live.viewAt < LIVE_VIEW_MS) return;
     if (!live) {
-      // the first CLs reach the result tables a little after the progress counts them: ask for
-      // plots and the scene once the table is there (a 404 would be an error in the console)
+      // the first CLs reach the result tables a little after the progress counts them (the tables
+      // are written empty when the run starts): ask for plots and the scene once they hold a CL
+      // (a 404 would be an error in the console)
       live = { busy: true, viewAt: now };
-      const ready = await getJSON(`/api/jobs/${id}/files`).then((l) => l.files.some((f) => f.name === "cl.parquet"),
-        () => false);
+      const ready = await getJSON(`/api/jobs/${id}/files`)
+        .then((l) => l.files.some((f) => f.name === "cl.parquet") && getJSON(`/api/jobs/${id}/summary`))
+        .then((t) => Boolean(t) && t.rows.some((r) => r.processed > 0), () => false);
       live = null;
       if (!ready || loaded) return;
       const plots = h("section", { class: "card plots" }, h("h2", {}, "Engagement so far"));
