@@ -130,13 +130,14 @@ class SceneRoutes:
         return "pending", "the workpiece after this CL is being computed"
 
     def _outcome(self, rec: Any, cl: int, fut: Any) -> tuple[str, str] | None:
-        """What a finished task says; None to submit it again (it was superseded, then asked for)."""
+        """What a finished task says; None to submit it again (it was superseded, then asked for). The
+        job's own failures (its input, its geometry, a mesh too large) are remembered; a worker's
+        exception is not, so the next request tries again."""
         try:
             result = fut.result()
-        except Exception as exc:  # noqa: BLE001 - a worker's problem: logged, answered in one line
+        except Exception as exc:  # noqa: BLE001 - a worker's problem: logged, answered once, asked again next time
             log.error("scene of job %s at CL %d failed", rec.id, cl, exc_info=exc)
-            result = {"state": "failed", "message": f"internal error building the scene ({type(exc).__name__}); "
-                                                    "see the service log"}
+            return "failed", f"internal error building the scene ({type(exc).__name__}); see the service log"
         if result.get("state") == "ready":
             log.info("scene of job %s at CL %d: %s", rec.id, cl, result)
             return "ready", ""

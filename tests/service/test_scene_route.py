@@ -171,3 +171,73 @@ def test_openapi_documents_the_scene_at_a_cl(client):
     assert "202" in spec["paths"]["/api/jobs/{job_id}/scene"]["get"]["responses"]
     assert "SceneAtCl" in spec["components"]["schemas"]
     assert "model/gltf-binary" in spec["paths"]["/api/jobs/{job_id}/scene.glb"]["get"]["responses"]["200"]["content"]
+
+
+# -- the route's bookkeeping, with a stand-in cluster ----------------------------------------------
+
+
+class _Future:
+    def __init__(self):
+        self.finished, self.value, self.error, self.cancelled = False, None, None, False
+
+    def done(self):
+        return self.finished
+
+    def result(self):
+        if self.error is not None:
+            raise self.error
+        return self.value
+
+    def cancel(self):
+        self.cancelled = True
+
+    def finish(self, value=None, error=None):
+        self.finished, self.value, self.error = True, value, error
+
+
+class _Cluster:
+    def __init__(self, folder):
+        from types import SimpleNamespace
+
+        self.folder = folder
+        self.submitted: list[tuple[int, int, _Future]] = []  # (CL, priority, future)
+        self.executor = SimpleNamespace(client=self)
+
+    def submit(self, fn, job_dir, cl, max_triangles, *, key, pure, priority):
+        assert fn is build_scene and job_dir == str(self.folder) and not pure
+        fut = _Future()
+        self.submitted.append((cl, priority, fut))
+        return fut
+
+    def job_dir(self, rec):
+        return self.folder
+
+
+def test_one_replay_per_job_the_latest_cl_wins(tmp_path):
+    from types import SimpleNamespace
+
+    from fusioncut.service.scene_route import SCENE_PRIORITY, SceneRoutes
+
+    cluster = _Cluster(tmp_path)
+    routes, rec = SceneRoutes(cluster), SimpleNamespace(id="j1")
+    scenes = tmp_path / SCENES_DIR
+    assert routes._mesh_state(rec, 5)[0] == "pending"
+    assert routes._mesh_state(rec, 5)[0] == "pending"  # asked again: the same task
+    assert [(c, p) for c, p, _ in cluster.submitted] == [(5, SCENE_PRIORITY)] and SCENE_PRIORITY > 0
+    assert (scenes / want_name(5)).exists()
+    # the slider moved on: the replay to CL 5 is told to stop, CL 9's starts
+    assert routes._mesh_state(rec, 9)[0] == "pending"
+    first, second = cluster.submitted[0][2], cluster.submitted[1][2]
+    assert first.cancelled and not (scenes / want_name(5)).exists() and (scenes / want_name(9)).exists()
+    # a worker's exception is answered once, then tried again
+    second.finish(error=RuntimeError("worker died"))
+    state, message = routes._mesh_state(rec, 9)
+    assert state == "failed" and "RuntimeError" in message
+    assert routes._mesh_state(rec, 9)[0] == "pending" and len(cluster.submitted) == 3
+    # the job's own failure is remembered: no new task
+    cluster.submitted[2][2].finish({"state": "failed", "cl": 9, "message": "tiny.nc: CL 9 is out of range"})
+    assert routes._mesh_state(rec, 9) == ("failed", "tiny.nc: CL 9 is out of range")
+    assert routes._mesh_state(rec, 9)[0] == "failed" and len(cluster.submitted) == 3
+    # a scene in the cache is ready without a task
+    (scenes / scene_name(12)).write_bytes(b"glTF")
+    assert routes._mesh_state(rec, 12) == ("ready", "") and len(cluster.submitted) == 3
