@@ -109,6 +109,20 @@ def _triangles(scene: Any) -> int:
     return sum(len(m.triangles) for m in (scene.ipw, scene.contact, scene.tool))
 
 
+def _portable(text: str, folder: Path) -> str:
+    """``text`` with the job's folders as the user knows them: input files by their own names."""
+    return text.replace(f"{folder / INPUT_DIR}{os.sep}", "").replace(str(folder), ".")
+
+
+def _portable_info(info: dict[str, Any], folder: Path) -> None:
+    """The CL info the GLB carries (its ``extras``) without server paths: the source ``file:line``, the
+    reason of a failed CL and the warnings name files the way the user named them."""
+    for key in ("source", "reason"):
+        if isinstance(info.get(key), str):
+            info[key] = _portable(info[key], folder)
+    info["warnings"] = [_portable(str(w), folder) for w in info.get("warnings", [])]
+
+
 def build_scene(job_dir: str, cl: int, max_triangles: int = DEFAULT_MAX_TRIANGLES) -> dict[str, Any]:
     """Write the scene of CL ``cl`` of the job in ``job_dir`` (see the module docstring) and return
     ``{"state": "ready", "cl", "triangles", "deflection_mm", "replayed": CLs run, "from": first CL
@@ -126,8 +140,7 @@ def build_scene(job_dir: str, cl: int, max_triangles: int = DEFAULT_MAX_TRIANGLE
     except SceneSuperseded:
         return {"state": "superseded", "cl": cl, "seconds": time.perf_counter() - t0}
     except FusionCutError as exc:
-        message = str(exc).replace(f"{folder / INPUT_DIR}{os.sep}", "").replace(str(folder), ".")
-        return {"state": "failed", "cl": cl, "message": message}
+        return {"state": "failed", "cl": cl, "message": _portable(str(exc), folder)}
 
 
 def _build(folder: Path, scenes: Path, out: Path, cl: int, max_triangles: int, t0: float) -> dict[str, Any]:
@@ -183,6 +196,7 @@ def _build(folder: Path, scenes: Path, out: Path, cl: int, max_triangles: int, t
     else:
         raise FusionCutError(f"CL {cl}: the workpiece's mesh needs more than {max_triangles} triangles even at "
                              f"{deflection / 2:g} mm deflection; download the workpiece instead")
+    _portable_info(scene.info, folder)
     data = scene_glb(scene)
     tmp = out.with_name(f".{out.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     tmp.write_bytes(data)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import time
+from pathlib import Path
 
 import pytest
 from service_helpers import KEY_B, TINY_GCODE, TINY_JOB, tiny_submission, tiny_total, wait_for
@@ -52,9 +53,41 @@ def test_replays_start_from_saved_states_and_give_the_same_workpiece(job_folder,
     # the workpiece after CL 5 still holds what the later CLs remove
     assert early["ipw_volume_mm3"] > _extras(b)["ipw_volume_mm3"] + 10.0
     assert early["cl_index"] == 5 and _extras(b)["cl_index"] == last
+    assert early["source"].startswith("tiny.nc:") and str(job_folder) not in json.dumps(early)  # no server paths
     # asked again: the cached file, nothing replayed
     assert build_scene(str(job_folder), 5)["replayed"] == 0
     assert state_spacing(tiny_total()) == 100 and state_spacing(1_000_000) == 15_625
+
+
+FUSION = Path(__file__).parents[2].parent / "shared" / "data" / "fusion-posted" / "1055_utab_265bit.nc"
+
+
+def _utab_folder(folder: Path) -> Path:
+    (folder / INPUT_DIR).mkdir(parents=True)
+    (folder / INPUT_DIR / FUSION.name).symlink_to(FUSION)
+    job = {"name": "utab", "stock": {"kind": "box", "min": [-5, -5, -13], "max": [60, 40, 0]},
+           "tools": [{"number": 1, "kind": "flat", "diameter": 2.65, "flute_length": 12}],
+           "toolpaths": [FUSION.name], "options": {"slice_height": 1.0, "max_segment_length": 1.0}}
+    (folder / INPUT_DIR / JOB_FILE).write_text(json.dumps(job))
+    return folder
+
+
+@pytest.mark.skipif(not FUSION.exists(), reason="shared data not available")
+def test_a_real_program_replayed_from_a_saved_state_equals_one_from_scratch(tmp_path):
+    # a Fusion 360 post of a 2.65 mm flat end mill (~12,400 CLs; states every 195 CLs)
+    cached, fresh = _utab_folder(tmp_path / "cached"), _utab_folder(tmp_path / "fresh")
+    assert build_scene(str(cached), 240)["from"] == 0
+    r = build_scene(str(cached), 252)
+    assert r["state"] == "ready" and r["from"] == 241 and r["replayed"] == 12
+    ref = build_scene(str(fresh), 252)
+    assert ref["from"] == 0 and ref["triangles"] == r["triangles"]
+    a = _extras((cached / SCENES_DIR / scene_name(252)).read_bytes())
+    b = _extras((fresh / SCENES_DIR / scene_name(252)).read_bytes())
+    for key in ("ipw_volume_mm3", "removed_volume_mm3", "contact_area_mm2", "ae_mm", "ap_mm"):
+        assert a[key] == pytest.approx(b[key], abs=1e-9), key
+    assert a["status"] == b["status"] and a["cl_index"] == 252
+    # the GLB goes to the user: files named as the user named them, no server folders
+    assert a["source"].startswith(f"{FUSION.name}:") and str(tmp_path) not in json.dumps(a)
 
 
 def test_an_engaged_cl_has_contact_faces_and_lines(job_folder):
