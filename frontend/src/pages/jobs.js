@@ -17,7 +17,9 @@ function row(job, onAction) {
     h("td", { class: "small message" }, job.message),
     h("td", { class: "actions" },
       h("a", { href: `#/jobs/${job.id}`, class: "button" }, "Open"),
-      ACTIVE.has(job.state) ? h("button", { type: "button", onclick: () => onAction("cancel", job) }, "Cancel") : null,
+      ACTIVE.has(job.state) ? h("button", { type: "button", class: "danger",
+        title: "Stop this job for good (the CLs finished so far are kept)", onclick: () => onAction("cancel", job) },
+      "Cancel") : null,
       h("button", { type: "button", class: "danger", onclick: () => onAction("delete", job) }, "Delete")));
 }
 
