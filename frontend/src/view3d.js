@@ -343,11 +343,14 @@ export class JobView {
     }
   }
 
-  // The part's box on the canvas (CSS pixels of the canvas's drawing buffer), for tests and tools.
+  // The part's box on the canvas in CSS pixels from its top left corner (what a screenshot of the
+  // canvas shows), for tests and tools.
   partOnScreen() {
+    const w = this.canvas.clientWidth || this.canvas.width;
+    const ht = this.canvas.clientHeight || this.canvas.height;
     return screenBox(this.partBox, (p) => {
       const v = new THREE.Vector3(...p).project(this.camera);
-      return [(v.x + 1) / 2 * this.canvas.width, (1 - v.y) / 2 * this.canvas.height];
+      return [(v.x + 1) / 2 * w, (1 - v.y) / 2 * ht];
     });
   }
 
