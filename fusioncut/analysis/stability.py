@@ -400,19 +400,25 @@ def sd_steps(system: ModalSystem, flutes: int, rpm: float, steps: int, per_vibra
 
 def sd_a_lim(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: Sequence[float] | float, a_ref: np.ndarray,
              steps: int = 30, per_vibration: float = 12.0, substeps: int = 8, grid_points: int = 20,
-             bisections: int = 10) -> np.ndarray:
+             bisections: int = 10, max_steps: int | None = None) -> np.ndarray:
     """SD limiting depth (mm) at each speed: the smallest depth on the geometric grid ``a_ref x [0.05,
     10]`` (``grid_points``) that is unstable, bisected ``bisections`` times against the stable point
     below it. ``a_ref`` is a scale per speed (the ZOA limit; where that is not finite the CL's ``ap``).
     ``inf`` when the whole grid is stable; the smallest grid depth when that is already unstable. Steps
-    per tooth period: :func:`sd_steps`."""
+    per tooth period: :func:`sd_steps`; NaN (not computed) where they would exceed ``max_steps`` (low
+    speeds against the modes: the monodromy matrix grows with the steps and its eigenvalues cost their
+    cube; the lobes are dense there and close to ZOA's)."""
     rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
     ref = np.broadcast_to(np.asarray(a_ref, dtype=float), rpm.shape)
     out = np.full(rpm.shape, np.inf)
     if not cd.engaged:
         return out
     m_of = np.array([sd_steps(system, cd.flutes, r, steps, per_vibration) for r in rpm])
+    if max_steps is not None:
+        out[m_of > max_steps] = np.nan
     for m in np.unique(m_of):
+        if max_steps is not None and m > max_steps:
+            continue
         idx = np.flatnonzero(m_of == m)
         out[idx] = _sd_a_lim_fixed(cd, system, ktc, rpm[idx], ref[idx], int(m), substeps, grid_points, bisections)
     return out
@@ -452,7 +458,8 @@ STABILITY_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("ap_mm", "mm", "axial depth of cut of the CL"),
     ("a_lim_zoa_mm", "mm", "limiting axial depth, zero-order approximation (inf: no engaged edge)"),
     ("a_lim_sd_mm", "mm", "limiting axial depth, semi-discretization (NaN: not computed)"),
-    ("margin", "", "ap / the smaller limit: below 1 stable, 1 or more chatter predicted"),
+    ("margin", "", "ap / the smaller limit (ZOA's where SD is NaN): below 1 stable, 1 or more chatter "
+                   "predicted"),
     ("nearest_stable_rpm", "1/min", "nearest speed in the searched range where the ZOA limit exceeds ap "
                                      "(the CL's own speed when stable; NaN: none)"),
 )
@@ -474,12 +481,14 @@ def stability_table(
     dz: float | None = None,
     sd: bool = True,
     sd_steps: int = 30,
+    sd_max_steps: int | None = 120,
     rpm_range: tuple[float, float] | None = None,
 ):  # -> pandas.DataFrame
     """Per-CL stability (columns :data:`STABILITY_COLUMNS`), one row per map, for one tool.
 
     ``rpm``: the spindle speed of each map (None: unknown, the row's limits are NaN, as for rapids and
-    failed CLs). ``rpm_range`` (rev/min): where :func:`nearest_stable_rpm` searches; by default 0.5 to
+    failed CLs). ``sd_max_steps``: see :func:`sd_a_lim` (its NaN rows take the ZOA limit alone for
+    the margin). ``rpm_range`` (rev/min): where :func:`nearest_stable_rpm` searches; by default 0.5 to
     1.5 times the CL's speed. CLs with equal bands, speed and flute count share one computation.
     """
     import pandas as pd
@@ -514,12 +523,12 @@ def stability_table(
             sdl = math.nan
             if sd:
                 ref = zoa if math.isfinite(zoa) else cd.ap
-                sdl = float(sd_a_lim(cd, system, ktc, n, ref, steps=sd_steps)[0])
+                sdl = float(sd_a_lim(cd, system, ktc, n, ref, steps=sd_steps, max_steps=sd_max_steps)[0])
             lo, hi = rpm_range if rpm_range is not None else (0.5 * n, 1.5 * n)
             near = nearest_stable_rpm(cd.alpha0, grid, ktc, cd.flutes, n, cd.ap, lo, hi)
             cache[key] = (zoa, sdl, near)
         zoa, sdl, near = cache[key]
-        limit = min(zoa, sdl) if sd else zoa
+        limit = zoa if math.isnan(sdl) else min(zoa, sdl)
         row.update(a_lim_zoa_mm=zoa, a_lim_sd_mm=sdl, margin=cd.ap / limit, nearest_stable_rpm=near)
     df = pd.DataFrame(rows, columns=names)
     return df.astype({"cl": "int64", "line": "int64", "file": "string", "operation": "string", "status": "string"})

@@ -43,6 +43,8 @@ def stability(
                                                                               "(default: inferred)."),
     sd: bool = typer.Option(True, "--sd/--no-sd", help="Also the semi-discretization limit (slower)."),
     sd_steps: int = typer.Option(30, "--sd-steps", min=4, help="Least SD steps per tooth period."),
+    sd_max_steps: int = typer.Option(120, "--sd-max-steps", min=4, help="Most SD steps per tooth period; "
+                                                                        "slower speeds get no SD limit."),
     rpm_min: Optional[float] = typer.Option(None, "--rpm-min", help="Lowest speed searched for a stable one "
                                                                     "(default: half the CL's)."),
     rpm_max: Optional[float] = typer.Option(None, "--rpm-max", help="Highest speed searched (default: 1.5 times "
@@ -91,7 +93,8 @@ def stability(
     parts = []
     for label, idx in s.groups.items():
         part = stability_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, dyn,
-                               [s.rpms[i] for i in idx], dz=s.dz, sd=sd, sd_steps=sd_steps, rpm_range=rpm_range)
+                               [s.rpms[i] for i in idx], dz=s.dz, sd=sd, sd_steps=sd_steps,
+                               sd_max_steps=sd_max_steps, rpm_range=rpm_range)
         if stick_out is not None:
             beam = SteppedCantilever.for_tool(s.tools[label], stick_out, flute_factor, youngs_gpa * 1e3)
             extra = deflection_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, beam,
@@ -109,7 +112,7 @@ def stability(
     known = table[table["margin"].notna()]
     if plot and len(known):
         chosen = _chosen_row(table, lobes_cl)
-        _plot_lobes(s, table, chosen, dyn, sd, sd_steps, out / "lobes.png")
+        _plot_lobes(s, table, chosen, dyn, sd, sd_steps, sd_max_steps, out / "lobes.png")
         _plot_margin(table, out / "margin.png")
         wrote += ["lobes.png", "margin.png"]
         if stick_out is not None:
@@ -119,6 +122,10 @@ def stability(
     console.print(f"stability of {len(known)} CL(s) ({escape(s.coefficients.name or material)}, Ktc "
                   f"{s.coefficients.ktc:g} N/mm²): {len(chatter)} with margin >= 1 (chatter predicted), largest "
                   f"margin {known['margin'].max() if len(known) else math.nan:.3g}", highlight=False)
+    no_sd = int((known["a_lim_sd_mm"].isna() & (known["status"] == "engaged")).sum()) if sd else 0
+    if no_sd:
+        console.print(f"[yellow]note:[/] {no_sd} engaged CL(s) without an SD limit: at their speed a tooth period "
+                      f"needs more than --sd-max-steps {sd_max_steps} steps (their margin is ZOA's)", highlight=False)
     console.print(f"wrote {', '.join(wrote)} in {escape(str(out))}", highlight=False)
 
 
@@ -136,7 +143,8 @@ def _chosen_row(table: Any, cl: Optional[int]) -> Any:
     return rows[rows["margin"].notna()].iloc[-1]
 
 
-def _plot_lobes(s: Any, table: Any, row: Any, dyn: Any, sd: bool, sd_steps: int, path: Path) -> None:
+def _plot_lobes(s: Any, table: Any, row: Any, dyn: Any, sd: bool, sd_steps: int, sd_max_steps: int,
+                path: Path) -> None:
     """ZOA (and SD at 40 speeds) lobes of the chosen CL between 0.3 and 2 times its speed, with the
     (speed, ap) points of the CLs of the same tool (red: margin >= 1)."""
     import numpy as np
@@ -157,7 +165,8 @@ def _plot_lobes(s: Any, table: Any, row: Any, dyn: Any, sd: bool, sd_steps: int,
     if sd:
         few = np.linspace(0.3 * n, 2.0 * n, 40)
         ref = np.interp(few, speeds, np.where(np.isfinite(zoa), zoa, cd.ap))
-        lim = sd_a_lim(cd, ModalSystem.from_dynamics(dyn), s.coefficients.ktc, few, ref, steps=sd_steps)
+        lim = sd_a_lim(cd, ModalSystem.from_dynamics(dyn), s.coefficients.ktc, few, ref, steps=sd_steps,
+                       max_steps=sd_max_steps)
         ax.plot(few, lim, "o-", color="#2c7fb8", ms=3, lw=1.0, label="SD a_lim", gid="sd")
     same = table[(table["margin"].notna()) & (table.index.isin(s.groups[emap.tool]))]
     bad = same["margin"] >= 1.0

@@ -196,6 +196,20 @@ def test_sd_against_zoa_for_a_slot_and_its_convergence() -> None:
     assert gaps[1] < 0.5 * gaps[0] and gaps[1] < 0.015 * lims[-1], lims
 
 
+def test_sd_not_computed_beyond_its_step_limit() -> None:
+    """At 3000 rev/min a tooth period holds 9.2 periods of the 922 Hz mode: 12 steps each need 120 > 60
+    steps, so no SD limit (NaN) and the table's margin is ZOA's; at 20000 rev/min 30 steps suffice."""
+    from fusioncut.analysis.stability import stability_table
+
+    cd = cl_directional(emap([(0, 180)]), tool(), COEF, dz=1.0)
+    system = ModalSystem.from_dynamics(BENCH_X)
+    lim = sd_a_lim(cd, system, KTC, [3000.0, 20000.0], 1.0, max_steps=60)
+    assert math.isnan(lim[0]) and np.isfinite(lim[1])
+    t = stability_table([emap([(0, 180)])], tool(), COEF, BENCH_X, [3000.0], dz=1.0, sd_max_steps=60)
+    zoa = zoa_a_lim(cd.alpha0, chatter_grid(BENCH_X), KTC, 2, 3000.0)[0]
+    assert math.isnan(t.loc[0, "a_lim_sd_mm"]) and t.loc[0, "margin"] == pytest.approx(1.0 / zoa, rel=1e-12)
+
+
 # --------------------------------------------------------------------------------------------------
 # nearest stable speed, a whole results directory and the command
 
