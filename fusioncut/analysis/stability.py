@@ -517,7 +517,7 @@ def stability_table(
                        nearest_stable_rpm=float(n))
             continue
         b = cd.bands
-        key = _key(cd.alpha0, cd.lag, b.area, b.sk, b.ck, b.entry, b.span, np.array([n, cd.flutes, cd.ap]))
+        key = _key(cd.alpha0, cd.frame, cd.lag, b.area, b.sk, b.ck, b.entry, b.span, np.array([n, cd.flutes, cd.ap]))
         if key not in cache:
             zoa = float(zoa_a_lim(cd.alpha0, grid, ktc, cd.flutes, n)[0])
             sdl = math.nan

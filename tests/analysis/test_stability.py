@@ -210,6 +210,25 @@ def test_sd_not_computed_beyond_its_step_limit() -> None:
     assert math.isnan(t.loc[0, "a_lim_sd_mm"]) and t.loc[0, "margin"] == pytest.approx(1.0 / zoa, rel=1e-12)
 
 
+def test_table_shares_only_equal_computations() -> None:
+    """A slot's mean factors do not change with the feed direction, its time-varying ones do (3 flutes:
+    turning the frame is no time shift): with modes along x only, slots along X and along Y have one ZOA
+    limit and two SD limits, each the direct one."""
+    from fusioncut.analysis.stability import stability_table
+
+    maps = [emap([(0, 180)], feed_angle=0.0), emap([(0, 180)], feed_angle=90.0)]
+    t = stability_table(maps, tool(3), COEF, BENCH_X, [14000.0, 14000.0], dz=1.0)
+    system = ModalSystem.from_dynamics(BENCH_X)
+    grid = chatter_grid(BENCH_X)
+    direct = []
+    for m in maps:
+        cd = cl_directional(m, tool(3), COEF, dz=1.0)
+        direct.append(sd_a_lim(cd, system, KTC, 14000.0, zoa_a_lim(cd.alpha0, grid, KTC, 3, 14000.0))[0])
+    assert t.loc[0, "a_lim_zoa_mm"] == pytest.approx(t.loc[1, "a_lim_zoa_mm"], rel=1e-12)
+    assert abs(direct[0] / direct[1] - 1) > 0.01
+    assert list(t["a_lim_sd_mm"]) == pytest.approx(direct, rel=1e-12)
+
+
 # --------------------------------------------------------------------------------------------------
 # nearest stable speed, a whole results directory and the command
 
