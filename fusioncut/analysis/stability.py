@@ -32,7 +32,9 @@ Lambda_R + i Lambda_I``, ``kappa_ = Lambda_I / Lambda_R`` and
 
     a_lim = -2 pi Lambda_R (1 + kappa_**2) / (N Ktc),    wc T = eps + 2 k pi,  eps = pi - 2 atan(kappa_)
 
-(lobe ``k = 0, 1, ...``). For one mode in x only this is ``a_lim = 2 pi / (N Ktc alpha_xx Re Phi_xx)``.
+(lobe ``k = 0, 1, ...``); with ``Lambda = -conj(lambda) / |lambda|^2`` this is ``a_lim = 2 pi / (N Ktc
+Re lambda)`` (a depth only where ``Re lambda > 0``) and ``eps = pi + 2 atan(Im lambda / Re lambda)``.
+For one mode in x only, ``a_lim = 2 pi / (N Ktc alpha_xx Re Phi_xx)``.
 The limit at a given speed is the smallest ``a_lim`` over every (wc, eigenvalue) whose phase matches
 that speed's ``T`` on some lobe, found by interpolation on a chatter-frequency grid.
 
