@@ -401,8 +401,8 @@ def sd_steps(system: ModalSystem, flutes: int, rpm: float, steps: int, per_vibra
 
 
 def sd_a_lim(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: Sequence[float] | float, a_ref: np.ndarray,
-             steps: int = 30, per_vibration: float = 12.0, substeps: int = 8, grid_points: int = 20,
-             bisections: int = 10, max_steps: int | None = None) -> np.ndarray:
+             steps: int = 30, per_vibration: float = 12.0, substeps: int = 8, grid_points: int = 14,
+             bisections: int = 8, max_steps: int | None = None) -> np.ndarray:
     """SD limiting depth (mm) at each speed: the smallest depth on the geometric grid ``a_ref x [0.05,
     10]`` (``grid_points``) that is unstable, bisected ``bisections`` times against the stable point
     below it. ``a_ref`` is a scale per speed (the ZOA limit; where that is not finite the CL's ``ap``).
