@@ -349,6 +349,23 @@ def _step_matrices(cd: CLDirectional, steps: int, substeps: int) -> np.ndarray:
 def sd_spectral_radius(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray, a_mm: np.ndarray,
                        steps: int = 40, substeps: int = 8, b_steps: np.ndarray | None = None) -> np.ndarray:
     """Spectral radius of the first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``."""
+    return np.abs(sd_multipliers(cd, system, ktc, rpm, a_mm, steps, substeps, b_steps)).max(axis=1)
+
+
+def sd_critical_multiplier(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: float, a_mm: float,
+                           steps: int = 40, substeps: int = 8) -> complex:
+    """The Floquet multiplier of largest modulus at ``(rpm, a_mm)``: leaving the unit circle at -1 it
+    is a period-doubling (flip) instability, as a complex pair a secondary Hopf one (the kind ZOA
+    predicts)."""
+    mu = sd_multipliers(cd, system, ktc, rpm, a_mm, steps, substeps)[0]
+    return complex(mu[np.argmax(np.abs(mu))])
+
+
+def sd_multipliers(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray | float,
+                   a_mm: np.ndarray | float, steps: int = 40, substeps: int = 8,
+                   b_steps: np.ndarray | None = None) -> np.ndarray:
+    """Eigenvalues of the first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``, shape
+    (pairs, 2 n + steps n) for ``n`` modes."""
     rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
     a_mm = np.atleast_1d(np.asarray(a_mm, dtype=float))
     rpm, a_mm = np.broadcast_arrays(rpm, a_mm)
@@ -389,7 +406,7 @@ def sd_spectral_radius(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: 
         delayed = [y[:, :n]] + delayed[:-1]
         y = top
     z = np.concatenate([y, *delayed], axis=1)
-    return np.abs(np.linalg.eigvals(z)).max(axis=1)
+    return np.linalg.eigvals(z)
 
 
 def sd_steps(system: ModalSystem, flutes: int, rpm: float, steps: int, per_vibration: float) -> int:

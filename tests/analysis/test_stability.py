@@ -196,6 +196,29 @@ def test_sd_against_zoa_for_a_slot_and_its_convergence() -> None:
     assert gaps[1] < 0.5 * gaps[0] and gaps[1] < 0.015 * lims[-1], lims
 
 
+def test_sd_finds_the_flip_lobes_zoa_misses() -> None:
+    """Down-milling at a/D = 0.05 on the benchmark (Insperger, Mann, Stepan & Bayly, Int. J. Mach. Tools
+    Manuf. 43 (2003) 25-34, describe this picture): at 16000 rev/min SD loses stability well below ZOA's
+    limit through a real multiplier -1 (period doubling, which ZOA's averaged model cannot show); at
+    24000 rev/min through a complex pair (secondary Hopf) with SD and ZOA within 2 %."""
+    from fusioncut.analysis.stability import sd_critical_multiplier
+
+    system = ModalSystem.from_dynamics(BENCH_X)
+    grid = chatter_grid(BENCH_X)
+    entry = round(180.0 - math.degrees(math.acos(1 - 2 * 0.05)), 4)
+    cd = cl_directional(emap([(entry, 180.0)]), tool(2), COEF, dz=1.0)
+    for rpm, flip in ((16000.0, True), (24000.0, False)):
+        zoa = zoa_a_lim(cd.alpha0, grid, KTC, 2, rpm)[0]
+        sd = sd_a_lim(cd, system, KTC, rpm, zoa, steps=30, per_vibration=0)[0]
+        above = sd_critical_multiplier(cd, system, KTC, rpm, 1.002 * sd, steps=30)
+        below = sd_critical_multiplier(cd, system, KTC, rpm, 0.998 * sd, steps=30)
+        assert abs(above) > 1 > abs(below)
+        if flip:
+            assert sd < 0.6 * zoa and above.real < -1 and abs(above.imag) < 1e-9
+        else:
+            assert sd == pytest.approx(zoa, rel=0.02) and abs(above.imag) > 0.1
+
+
 def test_sd_not_computed_beyond_its_step_limit() -> None:
     """At 3000 rev/min a tooth period holds 9.2 periods of the 922 Hz mode: 12 steps each need 120 > 60
     steps, so no SD limit (NaN) and the table's margin is ZOA's; at 20000 rev/min 30 steps suffice."""
