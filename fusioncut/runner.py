@@ -364,8 +364,8 @@ def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir:
     def checkpoint() -> None:
         nonlocal checkpointed
         writer.flush()  # rows first: the checkpoint never runs ahead of the results on disk
-        engine.save_checkpoint(ck_dir, recorded + 1)
-        checkpointed = recorded + 1
+        if _save_checkpoint(engine, ck_dir, recorded + 1):
+            checkpointed = recorded + 1
 
     with writer:
         try:
@@ -401,11 +401,24 @@ def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir:
             log.warning("interrupted after CL %d: results kept in %s; the checkpoint is at CL %d, run again "
                         "to resume", recorded, out_dir, checkpointed)
     if not interrupted:
-        engine.save_checkpoint(ck_dir, total)  # the writer is closed: every row is on disk
+        _save_checkpoint(engine, ck_dir, total)  # the writer is closed: every row is on disk
         if export_ipw:
             exported += _export(engine, [out_dir / "ipw.step", out_dir / "ipw.stl"])
     return RunResult(ops, engine.stock_volume, engine.ipw_volume, engine.removed_total, 0.0, out_dir,
                      interrupted, start_at, exported)
+
+
+def _save_checkpoint(engine: Any, ck_dir: Path, next_cl: int) -> bool:
+    """Write the engine's checkpoint before CL ``next_cl``; a failure (the kernel refusing to rebuild a
+    cell's faces, a full disk) is logged naming the CL and the run goes on: the results stay right,
+    only a resume starts from the last checkpoint that was written (each is written whole or not at all)."""
+    try:
+        engine.save_checkpoint(ck_dir, next_cl)
+    except Exception as exc:  # noqa: BLE001 - a checkpoint is a convenience: it never ends the run
+        log.error("the checkpoint before CL %d could not be written (%s: %s); the run goes on, and a resume "
+                  "starts from the last checkpoint written", next_cl, type(exc).__name__, exc)
+        return False
+    return True
 
 
 def _tool_description(t: MillingTool) -> dict[str, Any]:

@@ -132,6 +132,33 @@ def test_interrupted_run_resumes_to_identical_results(tmp_path):
     assert r2.conservation_error < 1e-6
 
 
+def test_a_checkpoint_that_cannot_be_written_never_ends_the_run(tmp_path, caplog, monkeypatch):
+    """The kernel refused to rebuild a layered cell's faces while a checkpoint was written
+    (StdFail_NotDone, on Fusion programs with R-format helical entries): the run ended in a traceback.
+    Now the failure is logged naming the CL, the run finishes with every CL, and a resume starts
+    from the last checkpoint written."""
+    from fusioncut.engines.brep.engine import BRepEngine
+
+    job, base = small_job(tmp_path, checkpoint_every=4)
+    ref = run_job(job, base, tmp_path / "ref", export_ipw=False)
+    save = BRepEngine.save_checkpoint
+
+    def flaky(self, folder, next_cl):
+        if next_cl >= 8:
+            raise RuntimeError("StdFail_NotDone: BRep_API: command not done")
+        save(self, folder, next_cl)
+
+    monkeypatch.setattr(BRepEngine, "save_checkpoint", flaky)
+    out = tmp_path / "out"
+    with caplog.at_level(logging.ERROR, logger="fusioncut.run"):
+        result = run_job(job, base, out, export_ipw=False)
+    assert not result.interrupted
+    assert_same_results(tmp_path / "ref", out)
+    assert result.removed_volume == ref.removed_volume
+    assert "the checkpoint before CL 8 could not be written (RuntimeError: StdFail_NotDone" in caplog.text
+    assert json.loads((out / "checkpoint" / "state.json").read_text())["next_cl"] == 4
+
+
 def test_rows_past_the_checkpoint_are_dropped_on_resume(tmp_path):
     """A run killed after flushing rows beyond its last checkpoint: those rows are computed again,
     never listed twice."""

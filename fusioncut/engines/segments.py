@@ -118,15 +118,17 @@ def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float 
                 chord_tolerance: float = 1e-3, ramp_step: float = 5e-2) -> list[Move]:
     """The CL segments of ``moves``, in order; no move is dropped (a zero-length one stays a segment)."""
     out: list[Move] = []
-    for m in moves:
-        # ZX / YZ arcs, and helices too steep to be stepped, become chords first
-        curved = isinstance(m, ArcMove) and (m.plane != ArcPlane.XY or (m.is_helix and _oblique(m) is None))
-        pieces = chords(m, chord_tolerance) if curved else [m]
-        for piece in pieces:
-            for step in staircase(piece, ramp_step):
-                for seg in step.split(max_segment_length):
-                    # a spiral (end radius off the start's) is swept as true circular arcs
-                    out += seg.circular_pieces(chord_tolerance) if isinstance(seg, ArcMove) else [seg]
+    for move in moves:
+        # a spiral (an arc whose end radius is off its start's: posts round I/J and end points) is
+        # followed by as few true circular arcs as the tolerance allows, before it is cut into CL
+        # segments, so that the segments of one arc share one circle as they do on exact arcs
+        for m in move.circular_pieces(chord_tolerance) if isinstance(move, ArcMove) else [move]:
+            # ZX / YZ arcs, and helices too steep to be stepped, become chords first
+            curved = isinstance(m, ArcMove) and (m.plane != ArcPlane.XY or (m.is_helix and _oblique(m) is None))
+            pieces = chords(m, chord_tolerance) if curved else [m]
+            for piece in pieces:
+                for step in staircase(piece, ramp_step):
+                    out += step.split(max_segment_length)
     return out
 
 

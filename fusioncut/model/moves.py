@@ -225,7 +225,7 @@ class ArcMove(Move):
         return (v[0] / L, v[1] / L, v[2] / L)
 
     def piece(self, t0: float, t1: float) -> ArcMove:
-        start = self.point_at(t0)
+        start = self.start if t0 == 0 else self.point_at(t0)
         end = self.end if t1 == 1 else self.point_at(t1)
         n = self.plane.axes[2]
         c = list(self.center)
@@ -245,64 +245,45 @@ class ArcMove(Move):
         return abs(self.end_radius - self.radius) > SPIRAL_EPS
 
     def circular_pieces(self, tolerance: float) -> list[ArcMove]:
-        """This arc as true circular arcs: pieces of the programmed spiral, each recentred on the
-        circle through its start, its middle and its end on the spiral (so start and end radius are
-        equal and the piece ends exactly where the spiral's piece does), with every point of each
-        circle within ``tolerance`` mm of the spiral (checked at eight points a piece, halving until it
-        holds). An arc that is no spiral is returned as it is.
+        """This arc as arcs of true circles about its programmed centre, for the engine to sweep.
 
-        Invariants: the pieces chain end to start, the first starts at ``start``, the last ends at
-        ``end``, each turns the way this arc turns and spans at most half a turn.
+        A spiral (end radius off the start's by more than :data:`SPIRAL_EPS`; posts round I/J and end
+        points, so real arcs are spirals by a few µm) is cut into ``n`` pieces with
+        ``|end radius - start radius| / n <= tolerance`` (mm), each at most half a turn. Piece ``k``
+        starts on the spiral and runs on the circle of its start's radius to the angle (and height) of
+        the spiral's next point, where it ends within ``tolerance`` of the programmed path; the next
+        piece starts on the spiral again (a radial step of at most ``tolerance``). So every piece's
+        sweep ends where the tool ends (the contact faces match the tool there), and each piece keeps
+        the programmed centre: a move that joins the arc tangentially in the program still does (sweeps
+        meeting at a few 1e-7 rad, as recentred circles gave, made the kernel's Booleans fail on a real
+        contour). An arc that is no spiral is returned as it is.
         """
         if not self.is_spiral:
             return [self]
-        n = max(1, math.ceil(abs(self.sweep) / math.pi - 1e-12))
-        for _ in range(_MAX_SPIRAL_HALVINGS):
-            pieces = [_recentred(self.piece(k / n, (k + 1) / n)) for k in range(n)]
-            if all(p is not None and _spiral_gap(self, k / n, (k + 1) / n, p) <= tolerance
-                   for k, p in enumerate(pieces)):
-                return pieces  # type: ignore[return-value]
-            n *= 2
-        raise InputError(f"a spiral arc (radius {self.radius:.6g} -> {self.end_radius:.6g} mm) cannot be "
-                         f"followed within {tolerance:g} mm by circular arcs", self.source)
+        a, b, _ = self.plane.axes
+        n = max(math.ceil(abs(self.end_radius - self.radius) / tolerance - 1e-12),
+                math.ceil(abs(self.sweep) / math.pi - 1e-12), 1)
+        if n > _MAX_SPIRAL_PIECES:
+            raise InputError(f"a spiral arc (radius {self.radius:.6g} -> {self.end_radius:.6g} mm) needs {n:,} "
+                             f"circular pieces to stay within {tolerance:g} mm of its path", self.source)
+        pieces = []
+        for k in range(n):
+            piece = self.piece(k / n, (k + 1) / n)
+            rho, _ = piece._polar(piece.start)
+            r1, _ = piece._polar(piece.end)
+            end = list(piece.end)
+            end[a] = self.center[a] + (end[a] - self.center[a]) * rho / r1
+            end[b] = self.center[b] + (end[b] - self.center[b]) * rho / r1
+            pieces.append(replace(piece, end=(end[0], end[1], end[2])))
+        return pieces
 
 
-# mm: an arc whose end radius differs from its start radius by more than this is a spiral and is
-# followed by recentred circular pieces (:meth:`ArcMove.circular_pieces`); below it the difference is
-# under the kernel's tolerance and the arc is swept about its programmed centre
+# mm: an arc whose end radius differs from its start radius by more than this is a spiral and is swept
+# as circular pieces (:meth:`ArcMove.circular_pieces`); below it the difference is under the kernel's
+# tolerance and the arc is swept as it is
 SPIRAL_EPS = 1e-9
-_MAX_SPIRAL_HALVINGS = 24
+_MAX_SPIRAL_PIECES = 1_000_000
 
-
-def _recentred(piece: ArcMove) -> ArcMove | None:
-    """``piece`` about the centre of the circle through its start, middle and end (in its plane; the
-    centre at the start's height along the normal); ``None`` when the three points are collinear or
-    the circle turns the other way."""
-    a, b, n = piece.plane.axes
-    p0, pm, p1 = piece.start, piece.point_at(0.5), piece.end
-    ax, ay = p0[a], p0[b]
-    bx, by = pm[a] - ax, pm[b] - ay
-    cx, cy = p1[a] - ax, p1[b] - ay
-    d = 2.0 * (bx * cy - by * cx)  # > 0: p0 -> pm -> p1 turns counter-clockwise about n
-    if abs(d) < 1e-18 or (d < 0) != piece.clockwise:
-        return None
-    b2, c2 = bx * bx + by * by, cx * cx + cy * cy
-    ux, uy = (cy * b2 - by * c2) / d, (bx * c2 - cx * b2) / d
-    c = [0.0, 0.0, 0.0]
-    c[a], c[b], c[n] = ax + ux, ay + uy, p0[n]
-    return replace(piece, center=(c[0], c[1], c[2]))
-
-
-def _spiral_gap(arc: ArcMove, t0: float, t1: float, piece: ArcMove) -> float:
-    """Largest in-plane distance (mm) between ``arc``'s spiral on [t0, t1] and ``piece``'s circle, at
-    eight points."""
-    a, b, _ = piece.plane.axes
-    rho = piece.radius
-    gap = 0.0
-    for k in range(1, 9):
-        p = arc.point_at(t0 + (t1 - t0) * k / 9)
-        gap = max(gap, abs(math.hypot(p[a] - piece.center[a], p[b] - piece.center[b]) - rho))
-    return gap
 
 
 @dataclass(frozen=True)

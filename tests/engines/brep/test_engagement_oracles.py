@@ -57,7 +57,9 @@ def test_full_slot_is_one_interval_0_180_on_every_engaged_slice(feed_angle, deci
     assert last.ae == pytest.approx(10.0, abs=1e-6)
     # front half of the cylinder over the axial depth
     assert last.contact_area == pytest.approx(math.pi * 5 * 3, rel=1e-6)
-    assert last.removed_volume == pytest.approx(10 * 20 * 3, rel=1e-9)
+    # a slot 10 mm wide and 3 mm deep along the segment (20 mm, or 16 when a post's rounding makes the
+    # move a hair longer than 80 mm and it is cut into 5)
+    assert last.removed_volume == pytest.approx(10 * math.dist(last.start, last.position) * 3, rel=1e-9)
 
 
 @POSTED
@@ -74,10 +76,10 @@ def test_up_and_down_milling_with_radial_depth(ae, side, spindle, decimals):
         stock = BoxStock((-50, y + R - ae, -20), (50, 40, 0))
     else:
         stock = BoxStock((-50, -40, -20), (50, y - R + ae, 0))
-    # the feed line off y = 0 by a third of a mm, its ends rounded apart as a post writes them
-    # (a slope of ~1e-6 rad); the closed form takes the radial depth at the rounded end
+    # the feed line off y = 0 by a third of a mm, rounded as a post writes it; the closed form takes the
+    # radial depth at the rounded line
     p1 = posted((0, y, -4), decimals)
-    _, maps = run([feed((-70, y + 4e-5, -4), p1, decimals=decimals)], {1: tool}, stock, max_segment_length=10.0)
+    _, maps = run([feed((-70, y, -4), p1, decimals=decimals)], {1: tool}, stock, max_segment_length=10.0)
     last = maps[-1]
     ae = ae + (p1[1] - y if material_on_plus_y else y - p1[1])
     phi = math.degrees(math.acos(1 - ae / R))
@@ -95,8 +97,8 @@ def test_ball_end_slot_follows_the_sphere_per_slice(decimals):
     R, depth = 5.0, 3.0
     tool = BallEndMill(2 * R, 20)
     stock = BoxStock((-60, -20, -20), (60, 20, 0))
-    y = 2.0 / 3.0  # off the axis so that a post's rounding moves the ends apart
-    moves = [feed((-80, y + 4e-5, -depth), (0, y, -depth), decimals=decimals)]
+    y = 2.0 / 3.0  # off the axis, so that a post's rounding moves the line
+    moves = [feed((-80, y, -depth), (0, y, -depth), decimals=decimals)]
     _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0, slice_height=0.2)
     last = maps[-1]
     engaged = last.engaged_slices
