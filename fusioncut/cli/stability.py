@@ -29,7 +29,9 @@ console = Console()
 @friendly_errors
 def stability(
     results_dir: Path = typer.Argument(..., metavar="RESULTS", help="Results directory of a run."),
-    modes: Path = typer.Option(..., "--modes", help="Tool-tip dynamics: modes (.json) or a measured FRF (.csv)."),
+    modes: list[str] = typer.Option(..., "--modes", help="Tool-tip dynamics, modes (.json) or a measured FRF (.csv): "
+                                                        "FILE for every tool, TOOL=FILE for one (its label or T "
+                                                        "number); repeatable."),
     out: Path = typer.Option(..., "--out", "-o", help="Directory for stability.csv/.parquet and the plots."),
     material: str = typer.Option("al7075-t6", "--material", help=_MATERIAL_HELP),
     coefficients: Optional[Path] = typer.Option(None, "--coefficients", help="Cutting coefficients file (JSON; "
@@ -65,19 +67,10 @@ def stability(
     with --stick-out also the static tool deflection and the wall's surface location error."""
     import pandas as pd
 
-    from fusioncut.analysis.dynamics import read_dynamics
     from fusioncut.analysis.deflection import DEFLECTION_COLUMNS, SteppedCantilever, deflection_table
     from fusioncut.analysis.stability import STABILITY_COLUMNS, stability_table
     from fusioncut.errors import InputError
 
-    dyn, fits = read_dynamics(modes, n_modes)
-    for d, fit in fits.items():
-        console.print(f"FRF {escape(str(d))}: {len(fit.modes)} mode(s) " + ", ".join(
-            f"{m.fn_hz:.1f} Hz zeta {m.zeta:.4f} k {m.k_n_per_m:.4g} N/m" for m in fit.modes)
-            + f"; fit error {100 * fit.relative_rms_error:.2f} % (relative RMS)", highlight=False)
-        if fit.relative_rms_error > 0.1:
-            console.print(f"[yellow]note:[/] the modal fit of {escape(str(d))} misses the FRF by "
-                          f"{100 * fit.relative_rms_error:.0f} %: check the modes (--fit-modes)", highlight=False)
     if (rpm_min is None) != (rpm_max is None):
         raise InputError("give both --rpm-min and --rpm-max, or neither")
     rpm_range = None
@@ -90,9 +83,10 @@ def stability(
         from fusioncut.analysis.calibrate import read_coefficients_json
 
         s.coefficients = read_coefficients_json(coefficients)
+    dynamics = _tool_dynamics(modes, s.tools, n_modes)
     parts = []
     for label, idx in s.groups.items():
-        part = stability_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, dyn,
+        part = stability_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, dynamics[label],
                                [s.rpms[i] for i in idx], dz=s.dz, sd=sd, sd_steps=sd_steps,
                                sd_max_steps=sd_max_steps, rpm_range=rpm_range)
         if stick_out is not None:
@@ -105,14 +99,14 @@ def stability(
     table = pd.concat(parts).sort_index()
     out.mkdir(parents=True, exist_ok=True)
     _write_table(table, out / "stability", {c: (u, d) for c, u, d in STABILITY_COLUMNS + DEFLECTION_COLUMNS},
-                 {"modes": dyn.as_dict(), "coefficients": s.coefficients.as_dict(),
+                 {"modes": {k: d.as_dict() for k, d in dynamics.items()}, "coefficients": s.coefficients.as_dict(),
                   "coefficients_name": s.coefficients.name or material, "slice_height_mm": s.dz, "sd": sd,
                   "tools": {k: _tool_info(t) for k, t in s.tools.items()}})
     wrote = ["stability.csv", "stability.parquet"]
     known = table[table["margin"].notna()]
     if plot and len(known):
         chosen = _chosen_row(table, lobes_cl)
-        _plot_lobes(s, table, chosen, dyn, sd, sd_steps, sd_max_steps, out / "lobes.png")
+        _plot_lobes(s, table, chosen, dynamics, sd, sd_steps, sd_max_steps, out / "lobes.png")
         _plot_margin(table, out / "margin.png")
         wrote += ["lobes.png", "margin.png"]
         if stick_out is not None:
@@ -129,6 +123,45 @@ def stability(
     console.print(f"wrote {', '.join(wrote)} in {escape(str(out))}", highlight=False)
 
 
+def _tool_dynamics(specs: list[str], tools: dict[str, Any], n_modes: Optional[int]) -> dict[str, Any]:
+    """The dynamics of every tool label from ``--modes`` values: ``TOOL=FILE`` (TOOL a label or ``T<n>``)
+    for one tool, a plain ``FILE`` for the others; each file read (and an FRF fitted) once."""
+    from fusioncut.analysis.dynamics import read_dynamics
+    from fusioncut.errors import InputError
+
+    names = {label: label for label in tools}
+    names.update({f"T{t.number}": label for label, t in tools.items() if t.number is not None})
+    default: Optional[str] = None
+    per_tool: dict[str, str] = {}
+    for spec in specs:
+        head, sep, tail = spec.partition("=")
+        if sep and head.strip() in names:
+            per_tool[names[head.strip()]] = tail
+        elif default is not None:
+            raise InputError(f"--modes {spec!r}: a second file for every tool (tools: {', '.join(sorted(names))}; "
+                             "name one as TOOL=FILE)")
+        else:
+            default = spec
+    read: dict[str, Any] = {}
+    out = {}
+    for label in tools:
+        path = per_tool.get(label, default)
+        if path is None:
+            raise InputError(f"no --modes for tool {label!r}: give --modes FILE or --modes {label}=FILE")
+        if path not in read:
+            read[path] = read_dynamics(Path(path), n_modes)
+            for d, fit in read[path][1].items():
+                console.print(f"{escape(path)} FRF {escape(str(d))}: {len(fit.modes)} mode(s) " + ", ".join(
+                    f"{m.fn_hz:.1f} Hz zeta {m.zeta:.4f} k {m.k_n_per_m:.4g} N/m" for m in fit.modes)
+                    + f"; fit error {100 * fit.relative_rms_error:.2f} % (relative RMS)", highlight=False)
+                if fit.relative_rms_error > 0.1:
+                    console.print(f"[yellow]note:[/] the modal fit of {escape(str(d))} misses the FRF by "
+                                  f"{100 * fit.relative_rms_error:.0f} %: check the modes (--fit-modes)",
+                                  highlight=False)
+        out[label] = read[path][0]
+    return out
+
+
 def _chosen_row(table: Any, cl: Optional[int]) -> Any:
     from fusioncut.errors import InputError
 
@@ -143,8 +176,8 @@ def _chosen_row(table: Any, cl: Optional[int]) -> Any:
     return rows[rows["margin"].notna()].iloc[-1]
 
 
-def _plot_lobes(s: Any, table: Any, row: Any, dyn: Any, sd: bool, sd_steps: int, sd_max_steps: int,
-                path: Path) -> None:
+def _plot_lobes(s: Any, table: Any, row: Any, dynamics: dict[str, Any], sd: bool, sd_steps: int,
+                sd_max_steps: int, path: Path) -> None:
     """ZOA (and SD at 40 speeds) lobes of the chosen CL between 0.3 and 2 times its speed, with the
     (speed, ap) points of the CLs of the same tool (red: margin >= 1)."""
     import numpy as np
@@ -155,6 +188,7 @@ def _plot_lobes(s: Any, table: Any, row: Any, dyn: Any, sd: bool, sd_steps: int,
     i = int(row.name)
     emap = s.maps[i]
     tool = s.tools[emap.tool]
+    dyn = dynamics[emap.tool]
     cd = cl_directional(emap, tool, s.coefficients, s.dz)
     n = float(row["spindle_rpm"])
     grid = chatter_grid(dyn)

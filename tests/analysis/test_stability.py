@@ -8,6 +8,7 @@ modal mass 0.03993 kg, Kt = 6e8 N/m², Kn = 2e8 N/m² (Kr = 1/3), 2 flutes.
 from __future__ import annotations
 
 import math
+from dataclasses import replace as dataclasses_replace
 from pathlib import Path
 
 import numpy as np
@@ -360,11 +361,12 @@ def test_stability_command(tmp_path) -> None:
     coef.write_text('{"ktc": 1}')
     bad_modes = tmp_path / "bad.json"
     bad_modes.write_text('{"x": [{"fn_hz": 600, "zeta": 0.03, "k_n_per_m": 0}]}')
-    for extra, msg in (([ "--coefficients", str(coef)], f"{coef}: missing key(s)"),
-                       (["--modes", str(bad_modes)], f"{bad_modes}: x[0]: mode k_n_per_m"),
-                       (["--rpm-min", "100"], "give both --rpm-min and --rpm-max"),
-                       (["--stick-out", "0"], "stick-out must be > 0 mm")):
-        r = CliRunner().invoke(app, args + extra)
+    with_bad_modes = [str(bad_modes) if a == str(modes) else a for a in args]
+    for given, msg in ((args + ["--coefficients", str(coef)], f"{coef}: missing key(s)"),
+                       (with_bad_modes, f"{bad_modes}: x[0]: mode k_n_per_m"),
+                       (args + ["--rpm-min", "100"], "give both --rpm-min and --rpm-max"),
+                       (args + ["--stick-out", "0"], "stick-out must be > 0 mm")):
+        r = CliRunner().invoke(app, given)
         assert r.exit_code == 2 and msg in " ".join(r.output.split()), r.output
 
 
@@ -401,3 +403,42 @@ def test_real_program_limits_from_saved_tables(run) -> None:
     np.testing.assert_allclose(direct.loc[slots, "margin"], 2.0 / want, rtol=1e-9)
     engaged = direct["status"] == "engaged"
     assert np.all(np.isfinite(direct.loc[engaged, "margin"])) and direct.loc[~engaged, "margin"].fillna(0).eq(0).all()
+
+
+def test_stability_command_modes_per_tool(tmp_path) -> None:
+    """--modes FILE for every tool and --modes TOOL=FILE for one: each tool's rows use its own modes."""
+    import pandas as pd
+    import typer
+    from typer.testing import CliRunner
+
+    from fusioncut.analysis.dynamics import read_modes_json
+    from fusioncut.analysis.materials import AL7075_T6_CARBIDE as AL
+    from fusioncut.analysis.stability import stability_table
+    from fusioncut.cli.stability import register
+    from fusioncut.io.results import ResultWriter
+
+    app = typer.Typer()
+    register(app)
+    app.command("noop")(lambda: None)
+    maps = [dataclasses_replace(m, tool=label) for m, label in zip(_results(tmp_path / "one")[:2], ("T1", "T2"))]
+    with ResultWriter(tmp_path / "res", tools={label: {"kind": "flat", "diameter_mm": 10.0, "flute_length_mm": 20.0}
+                                               for label in ("T1", "T2")}) as w:
+        for m in maps:
+            w.add(m, length_mm=1.0)
+    every = Path(__file__).parents[2] / "docs" / "stability_modes_example.json"
+    stiff = tmp_path / "stiff.json"
+    stiff.write_text('{"x": [{"fn_hz": 900, "zeta": 0.05, "k_n_per_m": 2e7}], "y": [{"fn_hz": 950, "zeta": 0.05, '
+                     '"k_n_per_m": 2e7}]}')
+    base = ["stability", str(tmp_path / "res"), "--rpm", "9000", "--flutes", "4", "--slice-height", "0.5",
+            "--no-sd", "--no-plot", "--out", str(tmp_path / "out")]
+    r = CliRunner().invoke(app, base + ["--modes", str(every), "--modes", f"T2={stiff}"])
+    assert r.exit_code == 0, r.output
+    got = pd.read_csv(tmp_path / "out" / "stability.csv")
+    t = FlatEndMill(diameter=10.0, flute_length=20.0, flutes=4)
+    for i, dyn in ((0, read_modes_json(every)), (1, read_modes_json(stiff))):
+        want = stability_table([maps[i]], t, AL, dyn, [9000.0], dz=0.5, sd=False)
+        assert got.loc[i, "a_lim_zoa_mm"] == pytest.approx(want.loc[0, "a_lim_zoa_mm"], rel=1e-12)
+    for extra, msg in ((["--modes", f"T2={stiff}"], "no --modes for tool 'T1'"),
+                       (["--modes", str(every), "--modes", str(stiff)], "a second file for every tool")):
+        r = CliRunner().invoke(app, base + extra)
+        assert r.exit_code == 2 and msg in " ".join(r.output.split()), r.output
