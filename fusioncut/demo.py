@@ -5,7 +5,9 @@ arcs, and a ball-end finishing pass with a ramp entry. Geometry in mm, block 80 
 """
 from __future__ import annotations
 
-from fusioncut.model import ArcMove, BallEndMill, BoxStock, FlatEndMill, LinearMove, Move, Toolpath
+from typing import Any
+
+from fusioncut.model import ArcMove, BallEndMill, BoxStock, FlatEndMill, LinearMove, MillingTool, Move, Toolpath
 
 STOCK = BoxStock((0.0, 0.0, -20.0), (80.0, 50.0, 0.0))
 FLAT = FlatEndMill(10.0, 25.0, flutes=3, helix_angle=35.0, number=1, name="T1 10mm flat")
@@ -82,4 +84,70 @@ def demo_stock() -> BoxStock:
     return STOCK
 
 
-__all__ = ["demo_toolpath", "demo_stock"]
+# -------------------------------------------------------------------------------------------------
+# The demo as a job of files: the CLI's `fusioncut demo` and the service's demo job run this one job,
+# so both read the same G-code and make the same CLs (they once differed: 753 CLs straight from the
+# moves above, 768 from the G-code with its first rapid from the origin, and CL 720 air in one and
+# engaged in the other).
+
+DEMO_FILE = "demo.ngc"
+# the CLI demo's segment length: short CLs give smooth engagement curves
+DEMO_OPTIONS = {"slice_height": 1.0, "max_segment_length": 2.0}
+
+
+def _num(v: float) -> str:
+    # repr-exact for the demo's decimal coordinates, without float noise like 8.000000000001
+    s = f"{v:.6f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
+def _tool_spec(t: MillingTool) -> dict[str, Any]:
+    kind = "ball" if isinstance(t, BallEndMill) else "flat" if isinstance(t, FlatEndMill) else None
+    if kind is None:
+        raise ValueError(f"demo tool {t.label} is neither flat nor ball")
+    return {"number": t.number, "kind": kind, "diameter": t.diameter, "flute_length": t.flute_length,
+            "flutes": t.flutes, "helix_angle": t.helix_angle, "spindle": t.spindle.value, "name": t.name}
+
+
+def demo_gcode() -> str:
+    """The demo toolpath as G-code, preceded by one rapid from the origin to the demo's start point."""
+    tp = demo_toolpath()
+    # the title shares its line with codes: a standalone comment would name an operation
+    lines = ["%", "G21 G90 G17 G94 G90.1 (FusionCut demo: face, slot, trochoidal, contour, ball finish)"]
+    tool, op, feed = None, None, None
+    for k, m in enumerate(tp.moves):
+        if m.tool != tool:
+            lines.append(f"T{m.tool} M6")
+            lines.append("M3")
+            tool = m.tool
+        if m.operation != op:
+            lines.append(f"({m.operation})")
+            op = m.operation
+        if k == 0:  # a program starts at the origin; go to the demo's start point first
+            lines.append(f"G0 X{_num(m.start[0])} Y{_num(m.start[1])} Z{_num(m.start[2])}")
+        x, y, z = (_num(c) for c in m.end)
+        if isinstance(m, LinearMove) and m.rapid:
+            lines.append(f"G0 X{x} Y{y} Z{z}")
+            continue
+        f = ""
+        if m.feed is not None and m.feed != feed:
+            f, feed = f" F{_num(m.feed)}", m.feed
+        if isinstance(m, ArcMove):
+            g = "G2" if m.clockwise else "G3"
+            lines.append(f"{g} X{x} Y{y} Z{z} I{_num(m.center[0])} J{_num(m.center[1])}{f}")
+        else:
+            lines.append(f"G1 X{x} Y{y} Z{z}{f}")
+    lines += ["M5", "M30", "%"]
+    return "\n".join(lines) + "\n"
+
+
+def demo_job(name: str = "demo", **options: Any) -> dict[str, Any]:
+    """The demo's job JSON (its tools and stock), reading :data:`DEMO_FILE` (:func:`demo_gcode`): the
+    one job that ``fusioncut demo`` runs and that the service's demo submits."""
+    tp, stock = demo_toolpath(), demo_stock()
+    return {"name": name, "stock": {"kind": "box", "min": list(stock.minimum), "max": list(stock.maximum)},
+            "tools": [_tool_spec(t) for _, t in sorted(tp.tools.items())],
+            "toolpaths": [DEMO_FILE], "options": {**DEMO_OPTIONS, **options}}
+
+
+__all__ = ["DEMO_FILE", "DEMO_OPTIONS", "demo_gcode", "demo_job", "demo_stock", "demo_toolpath"]

@@ -27,7 +27,6 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
-from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.sizing import Budget
 from fusioncut.model import EngagementMap
 
@@ -168,17 +167,22 @@ def register(app: typer.Typer) -> None:
              log_file: Optional[Path] = typer.Option(None, help=LOG_FILE_HELP),
              log_level: LogLevel = typer.Option(LogLevel.info, case_sensitive=False, help=LOG_LEVEL_HELP),
              ipw_export: bool = typer.Option(True, "--ipw-export/--no-ipw-export", help=IPW_HELP)) -> None:
-        """Mill the built-in demo block (face, slot, trochoidal, contour, ball finish) and summarise."""
-        from fusioncut.demo import demo_stock, demo_toolpath
-        from fusioncut.runner import run_toolpath
+        """Mill the built-in demo block (face, slot, trochoidal, contour, ball finish) and summarise.
+
+        The demo is the service's demo job (:func:`fusioncut.demo.demo_job`): its G-code is written
+        into the results folder as ``demo.ngc`` and run as a job, so both make the same CLs."""
+        from fusioncut.demo import DEMO_FILE, demo_gcode, demo_job
+        from fusioncut.io.job import Job
+        from fusioncut.runner import run_job
 
         if sweep not in ("exact", "sampled"):
             raise typer.BadParameter("--sweep is exact or sampled")
-        opts = EngineOptions(slice_height=slice_height, max_segment_length=2.0, sweep=sweep,  # type: ignore[arg-type]
-                             failure_dir=out / "failures")
+        job = Job.model_validate(demo_job(slice_height=slice_height, sweep=sweep))
+        out.mkdir(parents=True, exist_ok=True)
+        (out / DEMO_FILE).write_text(demo_gcode(), encoding="utf-8")
         with _logging(log_file or out / "fusioncut.log", log_level, append=False):
-            result = _run_with_progress(lambda **cb: run_toolpath(demo_toolpath(), demo_stock(), out, opts,
-                                                                 export_ipw=ipw_export, **cb))
+            result = _run_with_progress(lambda **cb: run_job(job, out, out, resume=False, export_ipw=ipw_export,
+                                                             **cb))
         _print_summary(result)
 
     @app.command()

@@ -16,6 +16,7 @@ import math
 import os
 import shutil
 import threading
+import time
 from collections import OrderedDict
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -141,7 +142,7 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
 
     def _checked(job: Job, staged: Path) -> Any:
         with check_lock:
-            return check_job(job, staged, settings.max_cls)
+            return check_job(job, staged, settings.budget)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):  # type: ignore[no-untyped-def]
@@ -208,7 +209,8 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
         """Version, Dask scheduler and limits of this service."""
         return ServiceInfo(version=__version__, scheduler=service.executor.address,
                            embedded_cluster=service.executor.cluster is not None,
-                           max_upload_bytes=settings.max_upload_bytes, max_cls=settings.max_cls)
+                           max_upload_bytes=settings.max_upload_bytes, max_cls=settings.max_cls,
+                           max_slices=settings.max_slices)
 
     # -- jobs -----------------------------------------------------------------------------------
     @app.post(
@@ -323,78 +325,117 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
     def _sse(event: str, data: Any) -> str:
         return f"event: {event}\ndata: {json.dumps(data, separators=(',', ':'))}\n\n"
 
-    def _event_stream(request: Request, poll) -> StreamingResponse:  # type: ignore[no-untyped-def]
+    # Event streams: at most settings.max_streams_per_key open per key (429 beyond), and one
+    # snapshot of a key's job states per poll interval shared by all its streams, so that the cost
+    # grows with the keys and jobs, not with the connections (200 streams on 28 jobs used to read
+    # every job's progress 800 times a second on the event loop, and /api/info took 1.5 s).
+    open_streams: dict[str, int] = {}
+    snapshots: dict[str, tuple[float, dict[str, tuple[str, dict[str, Any]]]]] = {}
+    stream_lock = threading.Lock()
+
+    def key_snapshot(who: str) -> dict[str, tuple[str, dict[str, Any]]]:
+        """id -> (state, JobStatus as a dict) of the key's jobs, newest first; at most one poll
+        interval old."""
+        now = time.monotonic()
+        with stream_lock:
+            hit = snapshots.get(who)
+            if hit is not None and now - hit[0] < 0.9 * settings.poll_interval_s:
+                return hit[1]
+        recs = service.store.list(owner=who) if service.store else []
+        snap = {r.id: (r.state, status_of(r).model_dump()) for r in recs}
+        with stream_lock:
+            snapshots[who] = (now, snap)
+        return snap
+
+    def _event_stream(request: Request, poll, who: str) -> StreamingResponse:  # type: ignore[no-untyped-def]
         """An SSE response that calls ``poll()`` -> (events, finished) every poll interval, with a
         comment line after 15 s without events so that proxies keep the connection open."""
+        if open_streams.get(who, 0) >= settings.max_streams_per_key:
+            raise HTTPException(429, f"this key has {settings.max_streams_per_key} event streams open already; "
+                                     "close one (GET /api/events follows every job of the key in one stream)")
 
         async def stream():  # type: ignore[no-untyped-def]
-            yield "retry: 2000\n\n"
-            idle = 0.0
-            while not service.stopping:
-                events, finished = poll()
-                for event in events:
-                    yield event
-                if events:
-                    idle = 0.0
-                if finished:
-                    return
-                if idle >= 15:
-                    yield ": keep-alive\n\n"
-                    idle = 0.0
-                if await request.is_disconnected():
-                    return
-                await asyncio.sleep(settings.poll_interval_s)
-                idle += settings.poll_interval_s
+            with stream_lock:
+                over = open_streams.get(who, 0) >= settings.max_streams_per_key
+                if not over:
+                    open_streams[who] = open_streams.get(who, 0) + 1
+            if over:  # several opened at once: the check above let them all through
+                yield _sse("error", {"detail": "too many event streams for this key"})
+                return
+            try:
+                yield "retry: 2000\n\n"
+                idle = 0.0
+                while not service.stopping:
+                    events, finished = poll()
+                    for event in events:
+                        yield event
+                    if events:
+                        idle = 0.0
+                    if finished:
+                        return
+                    if idle >= 15:
+                        yield ": keep-alive\n\n"
+                        idle = 0.0
+                    if await request.is_disconnected():
+                        return
+                    await asyncio.sleep(settings.poll_interval_s)
+                    idle += settings.poll_interval_s
+            finally:
+                with stream_lock:
+                    open_streams[who] -= 1
 
         return StreamingResponse(stream(), media_type="text/event-stream",
                                  headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
 
     @app.get("/api/jobs/{job_id}/events", tags=["jobs"], responses={
-        **PROBLEMS, 200: {"content": {"text/event-stream": {}},
-                          "description": "`status` events (a JobStatus as JSON) whenever it changes, then `end`"}})
+        **PROBLEMS, 429: {"model": Problem, "description": "too many event streams open for this key"},
+        200: {"content": {"text/event-stream": {}},
+              "description": "`status` events (a JobStatus as JSON) whenever it changes, then `end`"}})
     async def job_events(job_id: str, request: Request, who: str = Depends(owner)) -> StreamingResponse:
         """Server-sent events with live progress of one job; the stream ends when the job does."""
         lookup(job_id, who)
         last: list[Any] = [None]
 
         def poll() -> tuple[list[str], bool]:
-            rec = service.store.get(job_id, owner=who) if service.store else None
-            if rec is None:
-                return [_sse("deleted", {"id": job_id})], True
+            hit = key_snapshot(who).get(job_id)
+            if hit is None:  # not in the shared snapshot: deleted, or newer than the snapshot
+                rec = service.store.get(job_id, owner=who) if service.store else None
+                if rec is None:
+                    return [_sse("deleted", {"id": job_id})], True
+                hit = (rec.state, status_of(rec).model_dump())
+            state, now = hit
             events = []
-            now = status_of(rec).model_dump()
             if now != last[0]:
                 events.append(_sse("status", now))
                 last[0] = now
-            if rec.state in FINAL_STATES:
-                return events + [_sse("end", {"id": job_id, "state": rec.state})], True
+            if state in FINAL_STATES:
+                return events + [_sse("end", {"id": job_id, "state": state})], True
             return events, False
 
-        return _event_stream(request, poll)
+        return _event_stream(request, poll, who)
 
     @app.get("/api/events", tags=["jobs"], responses={
-        **PROBLEMS, 200: {"content": {"text/event-stream": {}},
-                          "description": "`job` events (JobStatus) for every job of the key that changes, "
-                                         "`deleted` events ({id}) for jobs that went away"}})
+        **PROBLEMS, 429: {"model": Problem, "description": "too many event streams open for this key"},
+        200: {"content": {"text/event-stream": {}},
+              "description": "`job` events (JobStatus) for every job of the key that changes, "
+                             "`deleted` events ({id}) for jobs that went away"}})
     async def all_events(request: Request, who: str = Depends(owner)) -> StreamingResponse:
         """Server-sent events for all jobs of this key (one connection for the whole job list)."""
         last: dict[str, Any] = {}
 
         def poll() -> tuple[list[str], bool]:
             events = []
-            seen = set()
-            for rec in service.store.list(owner=who) if service.store else []:
-                seen.add(rec.id)
-                now = status_of(rec).model_dump()
-                if last.get(rec.id) != now:
-                    last[rec.id] = now
+            snap = key_snapshot(who)
+            for job_id, (_, now) in snap.items():
+                if last.get(job_id) != now:
+                    last[job_id] = now
                     events.append(_sse("job", now))
-            for gone in set(last) - seen:
+            for gone in set(last) - set(snap):
                 del last[gone]
                 events.append(_sse("deleted", {"id": gone}))
             return events, False
 
-        return _event_stream(request, poll)
+        return _event_stream(request, poll, who)
 
     # -- results --------------------------------------------------------------------------------
     @app.get("/api/jobs/{job_id}/files", response_model=FileList, tags=["results"], responses=PROBLEMS)

@@ -32,6 +32,14 @@ log = logging.getLogger("fusioncut.service")
 MAX_ATTEMPTS = 5
 
 
+def _task_running(fut: Any) -> bool:
+    """Whether a job's task may still be inside a CL (not finished, failed, cancelled or lost)."""
+    try:
+        return fut.status == "pending"
+    except Exception:  # noqa: BLE001 - the scheduler is gone: nothing runs any more
+        return False
+
+
 class ClusterUnavailable(Exception):
     """The job could not be handed to the Dask cluster."""
 
@@ -93,7 +101,7 @@ class Service:
         if self._monitor is not None:
             self._monitor.join(timeout=10)
         if self.executor.cluster is not None:
-            self._suspend_all()
+            self._suspend_all(self.settings.stop_timeout_s)
         # Jobs stay queued/running in the store: the next start submits them again and they resume
         # from their checkpoints. Tasks on an external cluster just go on; the next start finds them.
         self.executor.close()
@@ -103,9 +111,15 @@ class Service:
             self._lock_file.close()
             self._lock_file = None
 
-    def _suspend_all(self, timeout_s: float = 30.0) -> None:
+    def _suspend_all(self, timeout_s: float = 30.0, poll_s: float = 0.1) -> None:
         """Closing the embedded cluster would wait for running jobs to finish (hours, maybe): ask them
-        to checkpoint and stop after their current CL instead, and give them ``timeout_s`` to do so."""
+        to checkpoint and stop after their current CL instead, and give them ``timeout_s`` to do so
+        (:attr:`Settings.stop_timeout_s`).
+
+        The wait reads each task's own status (``distributed.wait`` needs a default client, and the
+        service's client is deliberately not one: it raised at once, and the cluster was closed while
+        jobs were inside a CL). A job still inside a CL at the deadline resumes from its last
+        periodic checkpoint."""
         active = self.executor.active()
         if not active or self.store is None:
             return
@@ -114,12 +128,17 @@ class Service:
             if rec is not None:
                 (self.job_dir(rec) / SUSPEND_FILE).touch()
         log.info("suspending %d job(s) until the service starts again", len(active))
-        try:
-            from distributed import wait
-
-            wait(list(active.values()), timeout=timeout_s)
-        except Exception:  # noqa: BLE001 - a job stuck in one long CL resumes from its last checkpoint
-            log.warning("some jobs did not stop within %.0f s", timeout_s)
+        deadline = time.monotonic() + timeout_s
+        running = list(active.items())
+        while running and time.monotonic() < deadline:
+            running = [(job_id, fut) for job_id, fut in running if _task_running(fut)]
+            if running:
+                time.sleep(poll_s)
+        if running:
+            log.warning("%d job(s) did not reach a checkpoint within %.0f s: %s", len(running), timeout_s,
+                        ", ".join(job_id for job_id, _ in running))
+        else:
+            log.info("every job stopped at a checkpoint")
 
     def _take_lock(self) -> None:
         f = open(self.data_dir / "service.lock", "a+")
@@ -225,7 +244,8 @@ class Service:
         """Jobs left queued or running by an earlier service: adopt what their workers wrote, follow
         tasks the cluster still runs, and resubmit the rest (they resume from their checkpoints)."""
         assert self.store is not None
-        for rec in self.store.list(include_deleted=True):
+        # oldest first: the cluster starts tasks in the order they come, so jobs keep their turn
+        for rec in sorted(self.store.list(include_deleted=True), key=lambda r: (r.created_at, r.id)):
             if rec.state in FINAL_STATES:
                 if rec.deleted_at is not None:
                     self._remove(rec)

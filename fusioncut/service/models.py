@@ -75,4 +75,6 @@ class ServiceInfo(BaseModel):
     scheduler: str = Field(description="Dask scheduler address")
     embedded_cluster: bool
     max_upload_bytes: int
-    max_cls: int
+    max_cls: int = Field(description="largest job accepted, in CL segments")
+    max_slices: int = Field(0, description=
+        "largest job accepted, in slice evaluations (flute length / slice_height per CL)")

@@ -12,6 +12,9 @@ environment variables, and ``fusioncut serve`` options. Environment variables:
 ``FUSIONCUT_API_KEYS_FILE`` file with one API key per line (``#`` starts a comment)
 ``FUSIONCUT_MAX_UPLOAD_MB`` largest request body accepted, MiB (default 64)
 ``FUSIONCUT_MAX_CLS``       largest job accepted, in CL segments (default 200000)
+``FUSIONCUT_MAX_SLICES``    largest job accepted, in slice evaluations: per CL the tool's flute
+                            length over ``slice_height`` (default 10000000)
+``FUSIONCUT_MAX_STREAMS``   event streams open at once per API key (default 8)
 ``FUSIONCUT_FRONTEND_DIR``  the front end folder (default: ``frontend/`` next to the package)
 =========================== ==================================================================
 
@@ -32,6 +35,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from fusioncut.engines.sizing import Budget
 from fusioncut.errors import InputError
 
 MIN_KEY_LENGTH = 16  # shorter keys are guessable; refuse them rather than run with them
@@ -51,6 +55,10 @@ class Settings:
     api_keys_file: Path | None = None
     max_upload_bytes: int = 64 * 1024 * 1024
     max_cls: int = 200_000
+    # 200,000 CLs of a tool with 50 slices (a 50 mm flute at the default 1 mm slice height)
+    max_slices: int = 10_000_000
+    # Event streams a key may hold open; each polls the store every poll interval.
+    max_streams_per_key: int = 8
     max_files: int = 32
     frontend_dir: Path = field(default_factory=default_frontend_dir)
     # How often the worker rewrites progress.json, seconds: often enough for a smooth bar, rarely
@@ -58,8 +66,18 @@ class Settings:
     progress_interval_s: float = 0.25
     # Polling period of the service's monitor thread and of the event streams, seconds.
     poll_interval_s: float = 0.25
+    # At a stop, how long running jobs of the embedded cluster get to reach their next CL and write
+    # a checkpoint before the cluster is closed, seconds (a CL takes milliseconds to seconds).
+    stop_timeout_s: float = 30.0
     # Import the readers and the kernel in the background at start, so the first upload is not slow.
     warm_up: bool = True
+
+    @property
+    def budget(self) -> Budget:
+        """The most work one job may make (checked when it is submitted, before it is queued)."""
+        return Budget(max_cls=self.max_cls, max_slices=self.max_slices,
+                      raise_hint="this service's limits are its settings max_cls / max_slices "
+                                 "(FUSIONCUT_MAX_CLS / FUSIONCUT_MAX_SLICES); split the job")
 
     @property
     def worker_count(self) -> int:
@@ -81,6 +99,8 @@ class Settings:
             "FUSIONCUT_API_KEYS_FILE": ("api_keys_file", Path),
             "FUSIONCUT_MAX_UPLOAD_MB": ("max_upload_bytes", lambda s: int(float(s) * 1024 * 1024)),
             "FUSIONCUT_MAX_CLS": ("max_cls", int),
+            "FUSIONCUT_MAX_SLICES": ("max_slices", int),
+            "FUSIONCUT_MAX_STREAMS": ("max_streams_per_key", int),
             "FUSIONCUT_FRONTEND_DIR": ("frontend_dir", Path),
         }
         for var, (name, conv) in mapping.items():

@@ -4,7 +4,8 @@ Everything a worker would trip over is found here, while the user is still waiti
 the job must parse (pydantic), every file it names must have been uploaded under a safe name, the
 tool library and every toolpath file are read once with the project's own readers (so a malformed
 G-code line is reported with its file:line:column, as the CLI reports it), every tool a move uses
-must be defined, and the job must not have more CL segments than the service accepts.
+must be defined, and the job must not make more work (CL segments, slices, snapshots, checkpoints)
+than the service's :class:`~fusioncut.engines.sizing.Budget` (:attr:`Settings.budget`).
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from fusioncut.engines.sizing import Budget
 from fusioncut.errors import FusionCutError, InputError
 from fusioncut.io.job import Job
 from fusioncut.service.files import INPUT_DIR, JOB_FILE, check_name
@@ -94,6 +96,11 @@ def validation_message(exc: ValidationError, prefix: str = "") -> str:
     return f"{loc}: {first['msg']}{more}"
 
 
+# Python's JSON parser recurses once per level of nesting: a body of 100,000 '[' raised RecursionError,
+# answered 500. No job nests more than a few levels.
+_TOO_DEEP = "the JSON nests too deeply"
+
+
 def parse_json_body(raw: bytes) -> JobSubmission:
     try:
         data = json.loads(raw)
@@ -101,12 +108,16 @@ def parse_json_body(raw: bytes) -> JobSubmission:
         raise SubmissionError(422, "the body is not UTF-8 text") from None
     except json.JSONDecodeError as exc:
         raise SubmissionError(422, f"the body is not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
+    except RecursionError:
+        raise SubmissionError(422, f"the body is not accepted: {_TOO_DEEP}") from None
     if isinstance(data, dict) and "toolpaths" in data and "job" not in data:
         raise SubmissionError(422, 'a job must be wrapped with its files: {"job": {...}, "files": {"name.nc": "text"}}')
     try:
         return JobSubmission.model_validate(data)
     except ValidationError as exc:
         raise SubmissionError(422, validation_message(exc)) from None
+    except RecursionError:
+        raise SubmissionError(422, f"the body is not accepted: {_TOO_DEEP}") from None
 
 
 def write_text_files(files: dict[str, str], folder: Path) -> dict[str, Path]:
@@ -133,6 +144,8 @@ def build_job_from_form(job_text: str | None, uploads: dict[str, list[str]], for
     if job_text:
         try:
             data = json.loads(job_text)
+        except RecursionError:
+            raise SubmissionError(422, f"job: not accepted: {_TOO_DEEP}") from None
         except json.JSONDecodeError as exc:
             raise SubmissionError(422, f"job: not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
         if not isinstance(data, dict):
@@ -163,13 +176,15 @@ def build_job_from_form(job_text: str | None, uploads: dict[str, list[str]], for
         return Job.model_validate(data)
     except ValidationError as exc:
         raise SubmissionError(422, validation_message(exc, "job")) from None
+    except RecursionError:
+        raise SubmissionError(422, f"job: not accepted: {_TOO_DEEP}") from None
 
 
 def _relative(message: str, folder: Path) -> str:
     return message.replace(f"{folder}/", "").replace(str(folder), ".")
 
 
-def check_job(job: Job, folder: Path, max_cls: int) -> Checked:
+def check_job(job: Job, folder: Path, budget: Budget) -> Checked:
     """Check ``job`` against the files in ``folder`` (see the module doc); raises :class:`SubmissionError`."""
     present = {p.name for p in folder.iterdir() if p.is_file()}
     named: list[tuple[str, str]] = [(f"toolpaths[{k}]", n) for k, n in enumerate(job.toolpaths)]
@@ -185,25 +200,23 @@ def check_job(job: Job, folder: Path, max_cls: int) -> Checked:
         raise SubmissionError(422, f"job.stock.path: {job.stock.path!r} is not a STEP or BREP file "
                                    f"({', '.join(STOCK_SUFFIXES)})")
     try:
-        return _read_inputs(job, folder, max_cls)
+        return _read_inputs(job, folder, budget)
     except FusionCutError as exc:
         raise SubmissionError(422, _relative(str(exc), folder)) from None
     except (OSError, ValueError) as exc:
         raise SubmissionError(422, _relative(f"{type(exc).__name__}: {exc}", folder)) from None
 
 
-def _read_inputs(job: Job, folder: Path, max_cls: int) -> Checked:
+def _read_inputs(job: Job, folder: Path, budget: Budget) -> Checked:
     # The runner's own reading and checking, so that the service accepts exactly what `fusioncut
-    # run` accepts and refuses it with the same message; it writes nothing.
-    from fusioncut.engines.segments import segments_for
+    # run` accepts and refuses it with the same message; it writes nothing. The job is sized from its
+    # moves (closed form, nothing expanded) and refused over the service's budget.
+    from fusioncut.engines.sizing import size_toolpath
     from fusioncut.model.stock import BoxStock, CylinderStock
     from fusioncut.runner import prepare_job
 
     p = prepare_job(job, folder)
-    total = len(segments_for(p.toolpath.moves, p.options))
-    if total > max_cls:
-        raise SubmissionError(422, f"the job has {total} CL segments, more than this service accepts ({max_cls}); "
-                                   "split it or use a longer max_segment_length")
+    total = size_toolpath(p.toolpath, p.options, p.default_tool, p.checkpoint_every, p.snapshot_cls, budget).cls
     stock: dict[str, Any] | None = None  # a STEP stock is only read by the worker
     if isinstance(p.stock, BoxStock):
         stock = {"kind": "box", "min": list(p.stock.minimum), "max": list(p.stock.maximum)}

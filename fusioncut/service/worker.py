@@ -73,6 +73,10 @@ class ProgressReporter:
         self.interval_s = interval_s
         self.attempt = attempt
         self.started = time.time()
+        # seconds of every earlier attempt (progress.json's spent_s), so that "N CLs in T s" counts
+        # all the work on a job that was resumed, and of this attempt since it was handed over
+        self.spent_before = 0.0
+        self.attempt_started = time.time()
         self.done = 0
         self.total = 0
         self.first_done: int | None = None  # CLs already done when this attempt started (resume)
@@ -88,7 +92,12 @@ class ProgressReporter:
         eta = (self.total - self.done) / rate if rate > 0 and self.total else None
         return {"state": state, "done": self.done, "total": self.total, "operation": self.operation,
                 "rate_cl_s": rate, "eta_s": eta, "attempt": self.attempt, "pid": os.getpid(),
-                "host": socket.gethostname(), "started": self.started, "updated": now, **extra}
+                "host": socket.gethostname(), "started": self.started, "updated": now,
+                "spent_s": self.spent(now), **extra}
+
+    def spent(self, now: float | None = None) -> float:
+        """Seconds spent on the job by every attempt so far, this one included."""
+        return self.spent_before + max(0.0, (time.time() if now is None else now) - self.attempt_started)
 
     def write(self, state: str, **extra: Any) -> None:
         with self.lock:
@@ -188,6 +197,7 @@ def execute_job(job_dir: str, attempt: int = 1, progress_interval_s: float = 0.2
     reporter = ProgressReporter(folder, attempt, progress_interval_s)
     prev = read_progress(folder) or {}
     reporter.done, reporter.total = int(prev.get("done", 0)), int(prev.get("total", 0))
+    reporter.spent_before = float(prev.get("spent_s") or 0.0)
 
     handler = logging.FileHandler(results_dir / "fusioncut.log", mode="a", encoding="utf-8")
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
@@ -234,7 +244,10 @@ def execute_job(job_dir: str, attempt: int = 1, progress_interval_s: float = 0.2
             reporter.write("cancelled", message=message)
             return {"state": "cancelled", "message": message, "done": reporter.done, "total": reporter.total}
         failed = sum(op.failed for op in result.operations.values())
-        message = f"{sum(op.cls for op in result.operations.values())} CLs in {result.seconds:.1f} s"
+        # every CL of the job (those of a resumed checkpoint too) in the time of every attempt
+        message = f"{sum(op.cls for op in result.operations.values())} CLs in {reporter.spent():.1f} s"
+        if attempt > 1 or result.resumed_from:
+            message += f" ({attempt} attempts)" if attempt > 1 else " (resumed)"
         if failed:
             message += f"; {failed} failed (see the cl table's reason column)"
         reporter.done = reporter.total = max(reporter.total, reporter.done)

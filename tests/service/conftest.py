@@ -10,7 +10,8 @@ from service_helpers import ServiceProcess
 def service(tmp_path_factory):
     root = tmp_path_factory.mktemp("svc")
     svc = ServiceProcess(root / "data", workers=1,
-                         env={"FUSIONCUT_MAX_UPLOAD_MB": "1", "FUSIONCUT_MAX_CLS": "2000"})
+                         env={"FUSIONCUT_MAX_UPLOAD_MB": "1", "FUSIONCUT_MAX_CLS": "2000",
+                              "FUSIONCUT_MAX_SLICES": "100000"})
     yield svc
     svc.stop()
 

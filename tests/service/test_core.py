@@ -66,8 +66,9 @@ class FakeExecutor:
 
 def _service(tmp_path, executor):
     # no monitor ticks of its own (poll once an hour): the tests call tick() themselves
+    # a stop waits up to 2 s for tasks still pending (the fakes of most tests never end)
     return Service(Settings(data_dir=tmp_path, api_keys=("key-0123456789abcdef",), warm_up=False,
-                            poll_interval_s=3600), executor)
+                            poll_interval_s=3600, stop_timeout_s=2.0), executor)
 
 
 def _job(svc, job_id, state, attempt=1, progress=None, flags=(), deleted=False):
@@ -178,3 +179,64 @@ def test_two_services_cannot_share_a_data_folder(tmp_path):
     b = _service(tmp_path, FakeExecutor())  # free again once the first has stopped
     b.start()
     b.stop()
+
+
+def test_a_restart_resubmits_jobs_oldest_first(tmp_path):
+    first = _service(tmp_path, FakeExecutor())
+    first.start()
+    for job_id in ("c", "a", "b"):  # created in this order: neither the ids' nor the reverse order
+        _job(first, job_id, "queued")
+        time.sleep(0.01)
+    first.stop()
+    ex = FakeExecutor()
+    svc = _service(tmp_path, ex)
+    svc.start()
+    try:
+        assert ex.submitted == [("c", 2), ("a", 2), ("b", 2)]
+    finally:
+        svc.stop()
+
+
+class _StoppingFuture(FakeFuture):
+    """A task that reaches its next CL (and checkpoint) ``after_s`` after its suspend flag appears."""
+
+    def __init__(self, flag, after_s):
+        super().__init__()
+        self.flag, self.after_s, self.seen = flag, after_s, None
+
+    @property
+    def status(self):
+        if self.flag.exists() and self.seen is None:
+            self.seen = time.monotonic()
+        return "finished" if self.seen is not None and time.monotonic() - self.seen >= self.after_s else "pending"
+
+    @status.setter
+    def status(self, value):
+        pass
+
+
+def test_a_stop_waits_for_running_jobs_to_reach_a_checkpoint(tmp_path):
+    ex = FakeExecutor()
+    svc = _service(tmp_path, ex)
+    svc.start()
+    folder = _job(svc, "busy", "running")
+    fut = ex.futures["busy"] = _StoppingFuture(folder / "suspend", after_s=0.5)
+    t0 = time.monotonic()
+    svc.stop()
+    # the cluster is closed only once the job has stopped at its checkpoint (it used to be at once)
+    assert fut.status == "finished" and time.monotonic() - t0 >= 0.5
+
+
+def test_a_stop_waits_for_a_job_stuck_in_a_cl_no_longer_than_its_bound(tmp_path):
+    ex = FakeExecutor()
+    svc = _service(tmp_path, ex)
+    svc.start()
+    try:
+        _job(svc, "stuck", "running")
+        ex.futures["stuck"] = FakeFuture()  # never reaches its next CL
+        t0 = time.monotonic()
+        svc._suspend_all(timeout_s=0.5)
+        assert 0.5 <= time.monotonic() - t0 < 5
+    finally:
+        ex.futures.clear()
+        svc.stop()

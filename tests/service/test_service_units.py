@@ -176,3 +176,46 @@ def test_progress_is_throttled_resumable_and_cancel_stops(tmp_path):
         rep(SimpleNamespace(cl_index=7, operation="Slot"), 10)
     assert issubclass(JobCancelled, KeyboardInterrupt)
     assert not list(tmp_path.glob(".*tmp"))  # atomic writes leave no temporaries
+
+
+def test_the_cli_demo_runs_the_service_demo_job(tmp_path, monkeypatch):
+    """`fusioncut demo` and the service's demo are one job (they once made 753 and 768 CLs)."""
+    import fusioncut.runner
+    from typer.testing import CliRunner
+
+    from fusioncut.cli import app
+    from fusioncut.demo import demo_gcode, demo_job
+    from fusioncut.io.job import Job
+
+    ran = {}
+
+    class Ran(Exception):
+        pass
+
+    def fake_run_job(job, base, out, **kw):
+        ran.update(job=job, base=base, gcode=(base / job.toolpaths[0]).read_text())
+        raise Ran()
+
+    monkeypatch.setattr(fusioncut.runner, "run_job", fake_run_job)
+    res = CliRunner().invoke(app, ["demo", "--out", str(tmp_path / "demo")])
+    assert isinstance(res.exception, Ran), res.output
+    assert ran["job"] == Job.model_validate(demo_job()) and ran["gcode"] == demo_gcode()
+
+
+def test_a_resumed_job_reports_the_time_of_every_attempt(tmp_path):
+    """"N CLs in T s" counts the seconds of the earlier attempts (progress.json's spent_s) too."""
+    from service_helpers import TINY_GCODE, TINY_JOB
+
+    from fusioncut.io.job import Job
+    from fusioncut.service.files import JOB_FILE
+    from fusioncut.service.worker import execute_job
+
+    (tmp_path / "input").mkdir()
+    (tmp_path / "input" / "tiny.nc").write_text(TINY_GCODE)
+    (tmp_path / "input" / JOB_FILE).write_text(Job.model_validate(TINY_JOB).model_dump_json())
+    (tmp_path / "progress.json").write_text(json.dumps({"state": "suspended", "attempt": 1, "spent_s": 1000.0}))
+    out = execute_job(str(tmp_path), attempt=2, progress_interval_s=3600)
+    assert out["state"] == "done", out
+    seconds = float(out["message"].split(" CLs in ")[1].split(" s")[0])
+    assert 1000 < seconds < 1300 and "2 attempts" in out["message"]
+    assert read_progress(tmp_path)["spent_s"] == pytest.approx(seconds, abs=0.1)
