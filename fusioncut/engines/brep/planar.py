@@ -508,8 +508,27 @@ def difference(a: Region, b: Region) -> Difference:
             new.append((reversed_edge(piece), v1, v0))
             b_kept.append(piece)
     new_loops = kept_loops + _chain(new, verts.points)
-    lost_loops = _chain(lost, verts.points)
-    return Difference(tuple(new_loops), region_area(new_loops), region_area(lost_loops), tuple(b_kept))
+    islands = [loop for loop in new_loops if _island(loop)]
+    lost_area = region_area(_chain(lost, verts.points))
+    if islands:  # removed with the rest: their area is lost, the tool's edges round them touch nothing
+        new_loops = [loop for loop in new_loops if not _island(loop)]
+        lost_area += region_area(islands)
+        gone = {e for loop in islands for e in loop}
+        b_kept = [e for e in b_kept if reversed_edge(e) not in gone]
+    return Difference(tuple(new_loops), region_area(new_loops), lost_area, tuple(b_kept))
+
+
+# mm: a loop of material smaller than this across in x and in y is no material. Such islands are left
+# where several tool circles nearly meet at one point (a helix whose radius is the tool's: every
+# step's circle passes within a µm of the helix axis); their µm edges are below what the kernel can
+# make faces of (a checkpoint of such a layer failed with StdFail_NotDone), and below the resolution
+# at which posts write coordinates.
+ISLAND = 1e-3
+
+
+def _island(loop: tuple[Edge, ...]) -> bool:
+    x0, y0, x1, y1 = region_box((loop,))
+    return x1 - x0 < ISLAND and y1 - y0 < ISLAND and region_area((loop,)) > 0
 
 
 def _union_box(boxes) -> tuple[float, float, float, float]:

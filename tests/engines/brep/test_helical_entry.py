@@ -52,3 +52,35 @@ def test_helical_entry_removes_the_closed_form_pocket(cell_size, layers):
     for m in helix_steps:
         assert m.start[2] > m.position[2]  # the CL is the piece of the helix, on the path
         assert m.status == CLStatus.ENGAGED and m.removed_volume > 0
+
+
+def test_r_format_helix_of_the_tool_radius_as_posted(tmp_path):
+    """A Fusion hobby post's helical entry for a 3.175 mm end mill: R-format quarter arcs of the tool's
+    radius, coordinates at 3 decimals, so the tool's edge passes within a µm of the helix axis at every
+    step. The layers' 2D cuts left sub-µm islands of material there (edges of 1.7e-7 mm): their faces
+    could not be built (a checkpoint ended the run with StdFail_NotDone) and four CLs failed. No CL
+    fails now, a checkpoint after every CL is written, and the volume adds up."""
+    from fusioncut.io.gcode import read_gcode
+
+    r, cx, cy = 1.5875, 10.0, 7.047591954504442
+    f = "{:.3f}".format
+    lines = ["G90 G17 G21", f"G0 X{f(cx + r)} Y{f(cy)}", "G0 Z2", "G1 Z0.2 F300"]
+    z, a = 0.2, 0.0
+    while z > -2.0 + 1e-9:
+        a, z = a + math.pi / 2, max(-2.0, z - 0.2)
+        lines.append(f"G3 X{f(cx + r * math.cos(a))} Y{f(cy + r * math.sin(a))} Z{f(z)} R{f(r)} F600")
+    for _ in range(4):
+        a += math.pi / 2
+        lines.append(f"G3 X{f(cx + r * math.cos(a))} Y{f(cy + r * math.sin(a))} R{f(r)}")
+    lines += [f"G1 X{f(cx + 3)} Y{f(cy)} F800", f"G3 X{f(cx - 3)} Y{f(cy)} I-3 J0", "G0 Z5", "M30"]
+    src = tmp_path / "helix.nc"
+    src.write_text("\n".join(lines) + "\n")
+    tool = FlatEndMill(3.175, 12, number=1)
+    stock = BoxStock((0, 0, -6), (40, 40, 0))
+    eng = BRepEngine(EngineOptions(max_segment_length=1.0, failure_dir=tmp_path / "failures"))
+    maps = []
+    for m in eng.run(read_gcode(src, tools={1: tool}), stock, default_tool=tool):
+        maps.append(m)
+        eng.save_checkpoint(tmp_path / "ck", m.cl_index + 1)
+    assert [m.cl_index for m in maps if m.status == CLStatus.FAILED] == []
+    assert sum(m.removed_volume for m in maps) == pytest.approx(stock.volume - eng.ipw_volume, rel=1e-9)
