@@ -109,3 +109,36 @@ def test_resumed_job_equals_an_uninterrupted_run(tmp_path):
     pd.testing.assert_frame_equal(comparable(a.cl), comparable(ref.cl))
     pd.testing.assert_frame_equal(comparable(a.slices), comparable(ref.slices))
     pd.testing.assert_frame_equal(a.summary.drop(columns=["time_s"]), ref.summary.drop(columns=["time_s"]))
+
+
+@pytest.mark.slow
+def test_a_graceful_stop_checkpoints_mid_job_and_resumes_there(tmp_path):
+    """No periodic checkpoints (checkpoint_every 0): a resume can only start where the stop suspended
+    the job, which it does only when the stop waits for the job to reach its next CL (it used to close
+    the cluster at once, and the job started over)."""
+    data = tmp_path / "data"
+    sub = medium_submission(segment=SHORT_CLS, checkpoint_every=0)
+    _, med = _stop_mid_run(data, sub, at=45)
+    first_log = next(tmp_path.glob("service-*.log")).read_text()
+    assert "every job stopped at a checkpoint" in first_log
+    b = ServiceProcess(data, workers=1)
+    try:
+        with b.client() as c:
+            total = c.get(f"/api/jobs/{med}").json()["progress"]["total"]
+            _check_resumed(c, med, total)
+            log = c.get(f"/api/jobs/{med}/files/fusioncut.log").text
+            resumed_at = int(log.split("resuming from the checkpoint")[1].split(" at CL ")[1].split()[0])
+            assert 45 <= resumed_at < total
+            assert "(2 attempts)" in c.get(f"/api/jobs/{med}").json()["message"]
+            got = tmp_path / "got"
+            got.mkdir()
+            for name in ("cl.parquet", "slices.parquet", "metadata.json", "summary.csv"):
+                (got / name).write_bytes(c.get(f"/api/jobs/{med}/files/{name}").content)
+    finally:
+        b.stop()
+    from fusioncut.io.results import load_results
+
+    a, ref = load_results(got), reference_results(sub, tmp_path / "ref")
+    pd.testing.assert_frame_equal(comparable(a.cl), comparable(ref.cl))
+    pd.testing.assert_frame_equal(comparable(a.slices), comparable(ref.slices))
+    pd.testing.assert_frame_equal(a.summary.drop(columns=["time_s"]), ref.summary.drop(columns=["time_s"]))
