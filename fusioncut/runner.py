@@ -318,7 +318,7 @@ def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir:
          resume: bool, checkpoint_every: int, snapshot_cls: Iterable[int], export_ipw: bool,
          on_start: Callable[[RunPlan], None] | None, budget: Budget | None = None) -> RunResult:
     options = engine.options
-    size_toolpath(toolpath, options, default_tool, checkpoint_every, snapshot_cls, budget)
+    size_toolpath(toolpath, options, default_tool, checkpoint_every, snapshot_cls, budget, stock)
     segments = segments_for(toolpath.moves, options)
     total = len(segments)
     expected: dict[str, int] = {}

@@ -6,15 +6,15 @@ length over ``max_segment_length``, a ramp's steps of ``ramp_step``, a helix's s
 quarter turns, the chords of a ZX / YZ arc or a steep helix within ``chord_tolerance``, all turns
 included), an upper bound of the slices evaluated (per CL ``ceil(flute_length / slice_height)`` of
 the tool at that CL, as :func:`fusioncut.engines.brep.engine.slice_heights` cuts the flutes), the
-workpiece snapshots and the checkpoints. Counting stops as soon as a count passes its
-:class:`Budget`, so refusing a job costs at most a budget's worth of arithmetic, and a single move
+workpiece snapshots, the checkpoints and the workpiece cells over a box or cylinder stock. Counting
+stops as soon as a count passes its :class:`Budget`, so refusing a job costs at most a budget's worth of arithmetic, and a single move
 that alone makes more pieces than the budget (a 90-byte ``G18 G2 ... P100000``: 15.7 million chords)
 is refused in O(1).
 
 Mechanism: most moves are one closed form. Where the pieces of a move differ from one another (the
 chords of a ZX / YZ arc, each stepped by its own slope; the steps of a helix whose end radius differs
 from its start radius) they are counted with numpy, :data:`_CHUNK` pieces at a time, so memory stays
-bounded whatever the count. The count equals ``len(cl_segments(...))`` (tested on every real program
+bounded whatever the count (spiral arcs: see :func:`move_segments`). The count equals ``len(cl_segments(...))`` (tested on every real program
 of the test data and on generated moves) up to float rounding where a piece's length lies within
 1e-9 of a multiple of ``max_segment_length``.
 """
@@ -29,6 +29,7 @@ import numpy as np
 from fusioncut.errors import JobTooLarge
 from fusioncut.engines.segments import STAIRCASE_SLOPE, _oblique
 from fusioncut.model.moves import ArcMove, ArcPlane, Move, Toolpath
+from fusioncut.model.stock import BoxStock, CylinderStock, Stock
 from fusioncut.model.tools import MillingTool
 
 _CHUNK = 1 << 16  # pieces counted per numpy pass: 65,536 x a few float64 arrays, about 3 MB
@@ -46,7 +47,9 @@ class Budget:
     each is a section of the contact faces and a row of the slices table (100,000,000 rows is several
     GB of tables). ``max_snapshots``: entries of ``snapshot_cls``, each a STEP file of the whole
     workpiece. ``max_checkpoints``: checkpoints written in one run, each a copy of the whole engine
-    state. ``raise_hint``: how the user raises the limits where the budget is applied (the CLI's
+    state. ``max_cells``: workpiece cells (``cell_size`` squares over the stock's XY extent), each a
+    solid the engine cuts out of the stock when it starts (a Boolean each) and keeps in memory;
+    100,000 is a 6.3 m square stock in the default 20 mm cells. ``raise_hint``: how the user raises the limits where the budget is applied (the CLI's
     options, the service's settings), quoted in the refusal.
     """
 
@@ -54,20 +57,23 @@ class Budget:
     max_slices: int = 100_000_000
     max_snapshots: int = 1_000
     max_checkpoints: int = 100_000
+    max_cells: int = 100_000
     raise_hint: str = "raise the limit with fusioncut run --max-cls / --max-slices"
 
 
 @dataclass(frozen=True)
 class JobSize:
     """What a run would make: ``cls`` CL segments, at most ``slices`` slice evaluations (at most
-    ``max_slices_per_cl`` for one CL), ``snapshots`` workpiece snapshots and ``checkpoints``
-    checkpoints (the final one included)."""
+    ``max_slices_per_cl`` for one CL), ``snapshots`` workpiece snapshots, ``checkpoints``
+    checkpoints (the final one included) and ``cells`` workpiece cells (0: the stock's extent is not
+    known before it is read, a STEP stock)."""
 
     cls: int
     slices: int
     max_slices_per_cl: int
     snapshots: int
     checkpoints: int
+    cells: int = 0
 
 
 def _splits(length: np.ndarray | float, msl: float | None) -> np.ndarray | int:
@@ -191,12 +197,22 @@ def _arc_count(m: ArcMove, max_segment_length: float | None, chord_tolerance: fl
 
 
 def size_job(moves: Sequence[Move], options, flute_length: Callable[[Move], float],
-             checkpoint_every: int = 0, snapshot_cls: Iterable[int] = (), budget: Budget | None = None) -> JobSize:
+             checkpoint_every: int = 0, snapshot_cls: Iterable[int] = (), budget: Budget | None = None,
+             xy_extent: tuple[float, float] | None = None) -> JobSize:
     """Size a run of ``moves`` with ``options`` (an :class:`~fusioncut.engines.base.EngineOptions`),
-    ``flute_length(move)`` giving the flute length (mm) of the tool at each move; raises
-    :class:`~fusioncut.errors.JobTooLarge` naming the limit, the count and the move where the count
-    passed it, as soon as any count passes ``budget`` (default :class:`Budget`)."""
+    ``flute_length(move)`` giving the flute length (mm) of the tool at each move, on a stock of
+    ``xy_extent`` (mm, None: unknown); raises :class:`~fusioncut.errors.JobTooLarge` naming the
+    limit, the count and the move where the count passed it, as soon as any count passes ``budget``
+    (default :class:`Budget`)."""
     budget = budget or Budget()
+    cells = 0
+    if xy_extent is not None:
+        size = options.cell_size
+        cells = 1 if size is None else math.prod(max(1, math.ceil(e / size - 1e-9)) for e in xy_extent)
+        if cells > budget.max_cells:
+            raise JobTooLarge(f"options.cell_size: {size:g} mm cells over the stock's {xy_extent[0]:g} x "
+                              f"{xy_extent[1]:g} mm are {cells:,} cells, more than the limit of "
+                              f"{budget.max_cells:,} (each is a solid cut from the stock); use larger cells")
     snapshots = len(set(snapshot_cls))
     if snapshots > budget.max_snapshots:
         raise JobTooLarge(f"options.snapshot_cls: {snapshots:,} snapshots, more than the limit of "
@@ -226,13 +242,14 @@ def size_job(moves: Sequence[Move], options, flute_length: Callable[[Move], floa
         raise JobTooLarge(f"options.checkpoint_every: {checkpoint_every} makes {checkpoints:,} checkpoints of "
                           f"{cls:,} CLs, more than the limit of {budget.max_checkpoints:,} (each saves the whole "
                           "workpiece); checkpoint less often")
-    return JobSize(cls, slices, per_cl_max, snapshots, checkpoints)
+    return JobSize(cls, slices, per_cl_max, snapshots, checkpoints, cells)
 
 
 def size_toolpath(toolpath: Toolpath, options, default_tool: MillingTool | None = None, checkpoint_every: int = 0,
-                  snapshot_cls: Iterable[int] = (), budget: Budget | None = None) -> JobSize:
+                  snapshot_cls: Iterable[int] = (), budget: Budget | None = None, stock: Stock | None = None) -> JobSize:
     """:func:`size_job` for a toolpath: the tool at a move is its T number's, else ``default_tool``
-    (moves without a T word), else the longest flutes of the toolpath's tools (an upper bound)."""
+    (moves without a T word), else the longest flutes of the toolpath's tools (an upper bound); the
+    cells over a box or cylinder ``stock``."""
     flutes = {n: t.flute_length for n, t in toolpath.tools.items()}
     longest = max([*flutes.values(), *([default_tool.flute_length] if default_tool else [])], default=1.0)
 
@@ -241,7 +258,12 @@ def size_toolpath(toolpath: Toolpath, options, default_tool: MillingTool | None 
             return default_tool.flute_length
         return flutes.get(m.tool, longest)  # type: ignore[arg-type]
 
-    return size_job(toolpath.moves, options, flute_length, checkpoint_every, snapshot_cls, budget)
+    extent = None
+    if isinstance(stock, BoxStock):
+        extent = (stock.maximum[0] - stock.minimum[0], stock.maximum[1] - stock.minimum[1])
+    elif isinstance(stock, CylinderStock):
+        extent = (2 * stock.radius, 2 * stock.radius)
+    return size_job(toolpath.moves, options, flute_length, checkpoint_every, snapshot_cls, budget, extent)
 
 
 def _why(m: Move, msl: float | None, tol: float, ramp: float) -> str:

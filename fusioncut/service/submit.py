@@ -216,7 +216,8 @@ def _read_inputs(job: Job, folder: Path, budget: Budget) -> Checked:
     from fusioncut.runner import prepare_job
 
     p = prepare_job(job, folder)
-    total = size_toolpath(p.toolpath, p.options, p.default_tool, p.checkpoint_every, p.snapshot_cls, budget).cls
+    total = size_toolpath(p.toolpath, p.options, p.default_tool, p.checkpoint_every, p.snapshot_cls, budget,
+                          p.stock).cls
     stock: dict[str, Any] | None = None  # a STEP stock is only read by the worker
     if isinstance(p.stock, BoxStock):
         stock = {"kind": "box", "min": list(p.stock.minimum), "max": list(p.stock.maximum)}

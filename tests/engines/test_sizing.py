@@ -133,3 +133,25 @@ def test_options_below_their_lower_bound_are_refused(name):
     for bad in (low / 10, 0.0, -1.0, float("nan")):
         with pytest.raises(JobTooLarge, match=f"options.{name}"):
             EngineOptions(**{name: bad})
+
+
+def test_cells_over_the_stock_are_counted():
+    from fusioncut.engines.sizing import size_toolpath
+    from fusioncut.model import BoxStock, CylinderStock, FlatEndMill, Toolpath
+
+    tp = Toolpath((LinearMove((0.0, 0.0, -1.0), (10.0, 0.0, -1.0), feed=600.0, tool=1),), {1: FlatEndMill(6, 12)})
+    box = BoxStock((0, 0, -10), (100, 50, 0))
+    assert size_toolpath(tp, EngineOptions(), stock=box).cells == 5 * 3  # 20 mm cells
+    assert size_toolpath(tp, EngineOptions(cell_size=None), stock=box).cells == 1
+    assert size_toolpath(tp, EngineOptions(), stock=CylinderStock((0, 0, 0), 30, 10)).cells == 9
+    # a 1 µm cell size (the job's options allow any positive size): 5e9 cells, refused at once
+    tracemalloc.start()
+    try:
+        with pytest.raises(JobTooLarge, match="options.cell_size"):
+            size_toolpath(tp, EngineOptions(cell_size=1e-3), stock=box)
+        assert tracemalloc.get_traced_memory()[1] < 50e6
+    finally:
+        tracemalloc.stop()
+    huge = BoxStock((0, 0, -10), (1e6, 1e6, 0))  # a 1 km stock in 20 mm cells
+    with pytest.raises(JobTooLarge, match="2,500,000,000 cells"):
+        size_toolpath(tp, EngineOptions(), stock=huge)
