@@ -10,21 +10,24 @@ from rich.console import Console
 from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
-from fusioncut.engines.base import EngineOptions
 
 console = Console()
 
-# the demo's engine options, the same as `fusioncut demo` uses, so CL numbers match its results
-DEMO_MAX_SEGMENT = 2.0
-
-
 def load_inputs(source: str, slice_height: float | None = None):
-    """``(toolpath, stock, options, default_tool, name)`` of a job file, or of the demo for ``"demo"``."""
+    """``(toolpath, stock, options, default_tool, name)`` of a job file, or of the demo for ``"demo"``
+    (the job ``fusioncut demo`` and the service run, so CL numbers match their results)."""
     if source == "demo":
-        from fusioncut.demo import demo_stock, demo_toolpath
+        import tempfile
 
-        options = EngineOptions(slice_height=slice_height or 1.0, max_segment_length=DEMO_MAX_SEGMENT)
-        return demo_toolpath(), demo_stock(), options, None, "demo"
+        from fusioncut.demo import DEMO_FILE, demo_gcode, demo_job
+        from fusioncut.io.job import Job
+        from fusioncut.runner import prepare_job
+
+        with tempfile.TemporaryDirectory() as folder:
+            (Path(folder) / DEMO_FILE).write_text(demo_gcode(), encoding="utf-8")
+            job = Job.model_validate(demo_job(**({"slice_height": slice_height} if slice_height else {})))
+            p = prepare_job(job, Path(folder))
+        return p.toolpath, p.stock, p.options, p.default_tool, "demo"
     from fusioncut.io.job import load_job
     from fusioncut.runner import prepare_job
 

@@ -219,3 +219,17 @@ def test_a_resumed_job_reports_the_time_of_every_attempt(tmp_path):
     seconds = float(out["message"].split(" CLs in ")[1].split(" s")[0])
     assert 1000 < seconds < 1300 and "2 attempts" in out["message"]
     assert read_progress(tmp_path)["spent_s"] == pytest.approx(seconds, abs=0.1)
+
+
+def test_view_demo_numbers_the_demo_jobs_cls():
+    """`fusioncut view demo --cl N` shows CL N of the demo job that `fusioncut demo` and the service run."""
+    from fusioncut.cli.view import load_inputs
+    from fusioncut.demo import demo_gcode
+    from fusioncut.engines.segments import segments_for
+    from fusioncut.io.gcode import parse_gcode_text
+
+    toolpath, _, options, _, _ = load_inputs("demo")
+    job_moves = parse_gcode_text(demo_gcode(), source="demo.ngc").moves
+    assert [m.end for m in segments_for(toolpath.moves, options)] == \
+        [m.end for m in segments_for(job_moves, options)]
+    assert len(segments_for(toolpath.moves, options)) == 768
