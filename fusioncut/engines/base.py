@@ -61,6 +61,12 @@ class EngineOptions:
     took 14.2 s with 6 (the bore's cells solid), 10.2 s with 30 and 3.0 s with 100 (all layered),
     with the same maps CL by CL.
 
+    ``min_chip_thickness`` (mm, default 1 µm, 0 turns it off): a slice band whose removed material
+    is thinner than this across the path (removed volume / contact height / horizontal travel of the
+    CL) only rubs, as the µm skins a post's rounded coordinates leave on an earlier pass's walls: its
+    arcs are no engagement and do not count in ap (:mod:`fusioncut.engines.chip`). Known only where
+    the CL's cells that lost material were all layered; elsewhere no slice is called rubbing.
+
     Lower bounds (:data:`LOWER_BOUNDS`, checked when the options are made, before any move is
     expanded): 1e-3 mm for ``max_segment_length``, ``ramp_step`` and ``slice_height``, 1e-5 mm for
     ``chord_tolerance``. Below them a value buys no accuracy and only multiplies the work: 1 µm is
@@ -87,6 +93,7 @@ class EngineOptions:
     ceiling_pixel: float | None = 0.1
     layers: bool = True
     max_layers: int = 128
+    min_chip_thickness: float = 1e-3
 
     def __post_init__(self) -> None:
         for name, low in LOWER_BOUNDS.items():

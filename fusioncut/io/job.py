@@ -153,7 +153,8 @@ class Options(_Strict):
     ``cell_size`` (mm, default 20) keeps the workpiece as square columns, ``null`` keeps it whole; a
     parallel run always uses cells (20 mm when the job asks for none). Its results equal the
     single-process run's to 0.001° and 1e-6 of the volumes, and a checkpoint of either resumes in
-    the other.
+    the other. ``min_chip_thickness`` (mm, default 0.001, 0: off): a slice whose removed width
+    across the path is thinner only rubs (no engagement, not in ap).
     """
 
     slice_height: float = Field(1.0, gt=0)
@@ -162,6 +163,7 @@ class Options(_Strict):
     ramp_step: float = Field(5e-2, gt=0)
     sweep: Literal["exact", "sampled"] = "exact"
     cell_size: float | None = Field(20.0, gt=0)
+    min_chip_thickness: float = Field(1e-3, ge=0, allow_inf_nan=False)
     checkpoint_every: int = Field(200, ge=0)
     snapshot_cls: list[Annotated[int, Field(ge=0)]] = []
     workers: int = Field(1, ge=1)

@@ -45,6 +45,8 @@ exit_min_deg             float64   deg      smallest exit angle over all slices 
 exit_max_deg             float64   deg      largest exit angle over all slices (immersion)
 contact_area_mm2         float64   mm²      flute contact area
 shank_contact_area_mm2   float64   mm²      shank contact area (rubbing, not cutting)
+rubbing_slices           int64     -        slices whose contact only rubs (removed width across the path under
+                                            ``min_chip_thickness``): no rows in ``slices``, not counted in ap/ae
 removed_volume_mm3       float64   mm³      material removed by the segment
 mrr_mm3_min              float64   mm³/min  removed volume / (length / feed); NaN for rapids, failed CLs,
                                             unknown feed or zero length
@@ -176,6 +178,8 @@ CL_COLUMNS: tuple[Column, ...] = (
     _c("exit_max_deg", "float64", "deg", "largest exit angle over all slices (immersion)"),
     _c("contact_area_mm2", "float64", "mm^2", "flute contact area"),
     _c("shank_contact_area_mm2", "float64", "mm^2", "shank contact area (rubbing, not cutting)"),
+    _c("rubbing_slices", "int64", "", "slices whose contact only rubs (removed width across the path under "
+       "min_chip_thickness): no slices rows, not in ap/ae"),
     _c("removed_volume_mm3", "float64", "mm^3", "material removed by the segment"),
     _c("mrr_mm3_min", "float64", "mm^3/min",
        "removed volume / (length / feed); NaN for rapids, failed CLs, unknown feed or zero length"),
@@ -300,6 +304,7 @@ def cl_row(em: EngagementMap, length_mm: float | None = None) -> dict[str, Any]:
         "exit_max_deg": max(exits, default=math.nan),
         "contact_area_mm2": float(em.contact_area),
         "shank_contact_area_mm2": float(em.shank_contact_area),
+        "rubbing_slices": int(em.rubbing_slices),
         "removed_volume_mm3": removed,
         "mrr_mm3_min": mrr,
         "sweep_method": em.sweep_method,

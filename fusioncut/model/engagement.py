@@ -65,6 +65,9 @@ class EngagementMap:
 
     ``feed_angle`` is the machine angle (deg) of the horizontal feed direction used for the immersion
     frame (for a plunge, the last horizontal direction, +X at the start of a program).
+    ``rubbing_slices``: slices whose contact arcs only rub (the material removed in their band is
+    thinner across the path than the minimum chip thickness, :mod:`fusioncut.engines.chip`); their
+    arcs are left out of ``slices`` and ``axial_range`` covers only the slices that cut.
     """
 
     cl_index: int
@@ -86,6 +89,7 @@ class EngagementMap:
     sweep_method: str = ""
     axial_range: tuple[float, float] = (0.0, 0.0)  # z-range (mm above the tip) of flute contact
     timings_ms: tuple[tuple[str, float], ...] = ()
+    rubbing_slices: int = 0
 
     @property
     def engaged_slices(self) -> tuple[SliceEngagement, ...]:

@@ -49,6 +49,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.ceiling import MaterialCeiling, footprint, load_kernels, tool_radii
+from fusioncut.engines.chip import band_volumes, horizontal_travel, summed, without_rubbing
 from fusioncut.engines.brep.contact import arc_contacts, find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import (
     CuttingRegion, Layer, RegionCutFailure, contact_patches, cut_stack, layer_from_state, solid_layers, stack_box,
@@ -288,7 +289,8 @@ class BRepEngine:
             outcome = replace(outcome, status=CLStatus.FAILED, reason=f"contact analysis failed: {exc}")
             arcs = []
         outcome.timings["slicing"] = (time.perf_counter() - t0) * 1e3
-        return engagement_map(cl_base(index, move, tool, feed_angle), tool, move, outcome, heights, arcs)
+        return engagement_map(cl_base(index, move, tool, feed_angle), tool, move, outcome, heights, arcs,
+                              self.options.slice_height, self.options.min_chip_thickness)
 
     def cut(self, index: int, move: Move, tool: MillingTool, feed_angle: float) -> tuple[CutOutcome, list]:
         """Phase 1 of a CL on this engine's cells: sweep, Booleans, contact faces.
@@ -418,8 +420,12 @@ class BRepEngine:
         for cell, layers, *_ in layered:
             cell.set_layers(layers)
         self.removed_total += removed
+        # the volume per slice band is known where every cell that lost material was layered
+        lost = [(c.z_lo, c.z_hi, c.lost) for *_, cuts in layered for c in cuts]
+        bands = None if results else band_volumes(lost, move.end[2], self.options.slice_height,
+                                                  min(max(p[1] for p in lost) - move.end[2], tool.flute_length))
         outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
-                             method=method, timings=timings)
+                             method=method, timings=timings, band_volumes=bands)
         contacts = []
         try:
             arcs = [p for _, _, _, cuts in layered for p in contact_patches(cuts, move.end[:2], region.radius)]
@@ -832,6 +838,11 @@ class CutOutcome:
     """What one CL did to a set of cells, without kernel objects (so it can cross processes).
 
     ``removed`` mm³, areas mm², ``z_range`` (mm above the tip) of the flute contact, ``timings`` ms.
+    ``band_volumes``: the volume (mm³) removed in each slice band above the tip at the CL's end
+    (:func:`fusioncut.engines.chip.band_volumes`; () where nothing was removed), known where every
+    cell that lost material was layered (a layer's cut knows its lost area and heights); a solid
+    cell's Boolean gives only its total, so where one lost material they are None (unknown: no band
+    of that CL is called rubbing).
     """
 
     status: CLStatus
@@ -842,6 +853,7 @@ class CutOutcome:
     shank_area: float = 0.0
     z_range: tuple[float, float] | None = None
     timings: dict[str, float] = field(default_factory=dict)
+    band_volumes: tuple[float, ...] | None = ()
 
     def merged(self, other: CutOutcome) -> CutOutcome:
         """The outcome over both sets of cells (parallel partitions of one IPW)."""
@@ -852,7 +864,8 @@ class CutOutcome:
         return CutOutcome(status, self.removed + other.removed, self.method or other.method,
                           "; ".join(r for r in (self.reason, other.reason) if r),
                           self.flute_area + other.flute_area, self.shank_area + other.shank_area,
-                          (min(r[0] for r in zr), max(r[1] for r in zr)) if zr else None, timings)
+                          (min(r[0] for r in zr), max(r[1] for r in zr)) if zr else None, timings,
+                          summed(self.band_volumes, other.band_volumes))
 
 
 def cl_base(index: int, move: Move, tool: MillingTool, feed_angle: float) -> dict:
@@ -877,8 +890,16 @@ def slice_heights(z_range: tuple[float, float] | None, tool: MillingTool, dz: fl
 
 
 def engagement_map(base: dict, tool: MillingTool, move: Move, outcome: CutOutcome,
-                   heights: list[tuple[float, bool]], arcs: list[list[tuple[float, float]]]) -> EngagementMap:
-    """Assemble the map of a CL from its cut outcome and the machine arcs (rad) of each slice."""
+                   heights: list[tuple[float, bool]], arcs: list[list[tuple[float, float]]],
+                   slice_height: float = 1.0, min_chip_thickness: float = 0.0) -> EngagementMap:
+    """Assemble the map of a CL from its cut outcome and the machine arcs (rad) of each slice.
+
+    ``heights`` and ``arcs`` hold one entry per slice band of ``slice_height`` (mm) from the tip up.
+    A band whose removed width across the path is under ``min_chip_thickness`` (mm,
+    :mod:`fusioncut.engines.chip`) only rubs: its arcs are left out, counted in ``rubbing_slices``
+    and warned about, and ``axial_range`` is clamped to the bands that cut (``contact_area`` still
+    holds the whole flute contact).
+    """
     warnings = []
     if outcome.status == CLStatus.RAPID and outcome.removed > 0:
         warnings.append(f"rapid move cuts {outcome.removed:.4g} mm³ of material")
@@ -889,6 +910,12 @@ def engagement_map(base: dict, tool: MillingTool, move: Move, outcome: CutOutcom
                   shank_contact_area=outcome.shank_area)
     if outcome.status == CLStatus.FAILED or outcome.z_range is None:
         return EngagementMap(**base, **common)
+    arcs, axial_range, rubbing = without_rubbing(arcs, outcome.band_volumes, outcome.z_range, slice_height,
+                                                 horizontal_travel(move), min_chip_thickness)
+    if rubbing:
+        warnings.append(f"{rubbing} slice(s) only rub (removed width under the minimum chip thickness "
+                        f"{min_chip_thickness:g} mm): left out of the engagement")
+        common["warnings"] = tuple(warnings)
     profile = tool.profile()
     slices = []
     for (z, _), slice_arcs in zip(heights, arcs):
@@ -896,7 +923,7 @@ def engagement_map(base: dict, tool: MillingTool, move: Move, outcome: CutOutcom
         slices.append(SliceEngagement(z=z, z_machine=move.end[2] + z, radius=profile.radius_at(z),
                                       intervals=tuple(AngleInterval(e, x) for e, x in intervals)))
     return EngagementMap(**base, **common, slices=tuple(slices), contact_area=outcome.flute_area,
-                         axial_range=outcome.z_range)
+                         axial_range=axial_range, rubbing_slices=rubbing)
 
 
 def _immersion(start: float, span: float, feed_angle: float, spindle: SpindleDirection) -> tuple[float, float]:

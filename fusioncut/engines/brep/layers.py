@@ -232,7 +232,9 @@ class CuttingRegion:
 class LayerCut:
     """One layer cut by a region: the layer after the cut (None when all of it went), and how the
     cutting region's boundary came into the new one: the kernel's split with its history, or, cut
-    in closed form, the pieces of the cutting region's edges on the new boundary (``kept``)."""
+    in closed form, the pieces of the cutting region's edges on the new boundary (``kept``).
+    ``lost``: the area (mm²) the layer lost between ``z_lo`` and ``z_hi`` (mm, machine frame), so
+    the removed volume is ``lost * (z_hi - z_lo)`` and can be told per height."""
 
     z_lo: float
     z_hi: float
@@ -240,6 +242,7 @@ class LayerCut:
     op: BOPAlgo_Builder | None = None
     tool: TopoDS_Shape | None = None  # the cutting region's faces the split was made with
     kept: tuple[planar.Edge, ...] = ()
+    lost: float = 0.0
 
 
 def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape | planar.Region, z_tip: float, z_top: float,
@@ -299,10 +302,11 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape | planar.Region, z
             out.append(la.between(la.z_lo, z_tip))
         if new is not None and new.area <= 1e-12:
             new = None
-        removed += (la.area - (new.area if new else 0.0)) * (la.z_hi - z_lo)
+        lost = la.area - (new.area if new else 0.0)
+        removed += lost * (la.z_hi - z_lo)
         if new is not None:
             out.append(new)
-        cuts.append(LayerCut(z_lo, la.z_hi, new, op, face if op is not None else None, kept))
+        cuts.append(LayerCut(z_lo, la.z_hi, new, op, face if op is not None else None, kept, lost))
     return _joined(out), removed, cuts
 
 

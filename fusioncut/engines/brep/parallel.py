@@ -486,7 +486,8 @@ class ParallelBRepEngine:
             self.removed_total += outcome.removed
             # before the yield: whoever gets this CL sees the workpiece after it
             self._next = index + 1
-            yield engagement_map(cl_base(index, move, tool, feed_angle), tool, move, outcome, plan, arcs)
+            yield engagement_map(cl_base(index, move, tool, feed_angle), tool, move, outcome, plan, arcs,
+                                 self.options.slice_height, self.options.min_chip_thickness)
 
     # -- internals --------------------------------------------------------------------------------------
     def _seed(self, toolpath: Toolpath, default_tool: MillingTool | None, start_at: int) -> None:

@@ -223,3 +223,56 @@ def test_slot_along_rounded_arcs_is_one_interval_0_180(decimals, off, clockwise)
         assert_intervals(m, [(0.0, 180.0)], tol)
     removed = sum(m.removed_volume for m in maps)
     assert stock.volume - eng.ipw_volume == pytest.approx(removed, rel=1e-9)
+
+
+@pytest.mark.parametrize("offset", [5e-4, -5e-4])
+def test_a_skin_thinner_than_the_minimum_chip_only_rubs(offset):
+    """The grazed-wall case above with the second pass 0.5 µm beside the first, as a post's
+    rounding puts it: 3-6 mm above its tip the tool takes a crescent skin 0-0.5 µm thick off the
+    first pass's wall and end, and its contact arcs there span ~90°. The skin's removed width across
+    the path (0.5 µm) is under the default minimum chip thickness (1 µm): those 3 slices rub, they
+    are no engagement and ap stays the 3 mm the pass cuts. With the minimum off they count (ap 6).
+    The tool goes back over the stock, not through it, so the cells stay layered (a rapid through
+    the material would make them solids, whose per-band volumes are unknown: no rubbing is told).
+    """
+    tool, stock, moves = skin_case(offset)
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0)
+    last = maps[-1]
+    assert last.status == CLStatus.ENGAGED
+    assert last.ap == pytest.approx(3.0, abs=1e-9)
+    assert last.rubbing_slices == 3
+    assert [s.z for s in last.engaged_slices] == pytest.approx([0.5, 1.5, 2.5], abs=1e-9)
+    assert_intervals(last, [(0.0, 180.0)], MID_PASS_TOL)
+    assert any("rub" in w for w in last.warnings)
+
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0, min_chip_thickness=0.0)
+    last = maps[-1]
+    assert len(last.engaged_slices) == 6
+    assert last.ap == pytest.approx(6.0, abs=1e-6)
+    assert last.rubbing_slices == 0
+
+
+def skin_case(offset):
+    tool = FlatEndMill(10, 20)
+    stock = BoxStock((-60, -30, -20), (60, 30, 0))
+    moves = [feed((-80, 0, -3), (0, 0, -3)), LinearMove((0, 0, -3), (0, 0, 5), rapid=True, tool=1),
+             LinearMove((0, 0, 5), (-80, offset, 5), rapid=True, tool=1),
+             LinearMove((-80, offset, 5), (-80, offset, -6), rapid=True, tool=1),
+             feed((-80, offset, -6), (0, offset, -6))]
+    return tool, stock, moves
+
+
+def test_dask_workers_tell_the_same_rubbing_slices():
+    """Workers each cut a part of the cells: the volumes removed per band are summed over them, so
+    the skin rubs alike (its cells are split among the workers)."""
+    pytest.importorskip("distributed")
+    from fusioncut.engines.brep.parallel import ParallelBRepEngine
+
+    tool, stock, moves = skin_case(5e-4)
+    _, serial = run(moves, {1: tool}, stock, max_segment_length=20.0)
+    with ParallelBRepEngine(EngineOptions(max_segment_length=20.0), workers=2, batch=3) as engine:
+        parallel = list(engine.run(Toolpath(tuple(moves), {1: tool}), stock))
+    assert sum(m.rubbing_slices for m in serial) >= 3 * 4  # the pass's 4 CLs in the stock
+    assert [m.rubbing_slices for m in parallel] == [m.rubbing_slices for m in serial]
+    assert [m.ap for m in parallel] == pytest.approx([m.ap for m in serial], abs=1e-9)
+    assert [[s.z for s in m.engaged_slices] for m in parallel] == [[s.z for s in m.engaged_slices] for m in serial]
