@@ -276,3 +276,29 @@ def test_dask_workers_tell_the_same_rubbing_slices():
     assert [m.rubbing_slices for m in parallel] == [m.rubbing_slices for m in serial]
     assert [m.ap for m in parallel] == pytest.approx([m.ap for m in serial], abs=1e-9)
     assert [[s.z for s in m.engaged_slices] for m in parallel] == [[s.z for s in m.engaged_slices] for m in serial]
+
+
+@pytest.mark.parametrize("dr", [5e-4, -5e-4])
+def test_a_skin_left_by_an_arc_retraced_a_rounding_beside_only_rubs(dr):
+    """A quarter arc slot (R 30) cut at z=-3, then again at z=-6 on a radius 0.5 µm larger or
+    smaller (rounded I/J): over the arc's every CL the skin above 3 mm rubs (its width is measured
+    over the arc's length), the 3 mm below are a full slot."""
+    tool = FlatEndMill(10, 20)
+    stock = BoxStock((-10, -30, -20), (50, 50, 0))
+    r = 30.0
+
+    def arc(z, radius):
+        return ArcMove((radius, 0, z), (0, radius, z), feed=600.0, tool=1, center=(0, 0, z))
+
+    moves = [feed((r, -40, -3), (r, 0, -3)), arc(-3, r), LinearMove((0, r, -3), (0, r, 5), rapid=True, tool=1),
+             LinearMove((0, r, 5), (r + dr, -40, 5), rapid=True, tool=1),
+             LinearMove((r + dr, -40, 5), (r + dr, -40, -6), rapid=True, tool=1),
+             feed((r + dr, -40, -6), (r + dr, 0, -6)), arc(-6, r + dr)]
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=10.0)
+    second_arc = [m for m in maps if m.position[2] == -6 and m.position[1] > 0]  # the line ends at y = 0
+    assert len(second_arc) == 5  # 47.1 mm in pieces of at most 10
+    for m in second_arc:
+        assert m.ap == pytest.approx(3.0, abs=1e-9), m.cl_index
+        assert m.rubbing_slices == 3
+        assert [s.z for s in m.engaged_slices] == pytest.approx([0.5, 1.5, 2.5], abs=1e-9)
+        assert_intervals(m, [(0.0, 180.0)], MID_PASS_TOL)
