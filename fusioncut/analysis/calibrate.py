@@ -40,6 +40,7 @@ import numpy as np
 
 from fusioncut.analysis.forces import CuttingCoefficients
 from fusioncut.errors import InputError, SourceLocation
+from fusioncut.io.json_input import read_json
 
 CSV_COLUMNS = ("c_mm", "fx_N", "fy_N", "fz_N")
 
@@ -236,15 +237,8 @@ def read_coefficients_json(path: str | Path) -> CuttingCoefficients:
     :meth:`CuttingCoefficients.as_dict` (``ktc, krc, kac`` N/mm², ``kte, kre, kae`` N/mm; axial sign
     convention of :mod:`fusioncut.analysis.forces`) and optional ``name`` and ``source`` strings.
     Errors name the file (and the line of bad JSON)."""
-    import json
-
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8-sig"))
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not a UTF-8 text file ({exc.reason} at byte {exc.start})", path) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON: {exc.msg}", SourceLocation(str(path), exc.lineno, exc.colno)) from None
+    data = read_json(path)
     if not isinstance(data, dict):
         raise InputError(f"expected an object with the keys {', '.join(COEFFICIENT_KEYS)}", path)
     missing = [k for k in COEFFICIENT_KEYS if k not in data]

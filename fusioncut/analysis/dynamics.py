@@ -25,7 +25,6 @@ Two inputs:
 from __future__ import annotations
 
 import csv
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +33,7 @@ from typing import Sequence
 import numpy as np
 
 from fusioncut.errors import InputError, SourceLocation
+from fusioncut.io.json_input import read_json
 
 DIRECTIONS = ("x", "y")
 MODE_KEYS = ("fn_hz", "zeta", "k_n_per_m")
@@ -114,14 +114,7 @@ def read_modes_json(path: str | Path) -> ToolDynamics:
     """Modes from a JSON file (module docstring); errors name the file (and line for bad JSON) and the
     entry, e.g. ``modes.json: x[1].zeta must be < 1``."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not a UTF-8 text file ({exc.reason} at byte {exc.start})", path) from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON: {exc.msg}", SourceLocation(str(path), exc.lineno, exc.colno)) from None
+    data = read_json(path)
     if not isinstance(data, dict):
         raise InputError('expected an object {"x": [modes], "y": [modes]}', path)
     unknown = sorted(set(data) - set(DIRECTIONS))

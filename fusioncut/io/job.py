@@ -7,7 +7,6 @@ The JSON Schema is ``Job.model_json_schema()`` (``fusioncut schema`` prints it).
 from __future__ import annotations
 
 import hashlib
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Literal
@@ -15,6 +14,7 @@ from typing import TYPE_CHECKING, Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fusioncut.errors import InputError
+from fusioncut.io.json_input import read_json
 from fusioncut.model.moves import Toolpath
 from fusioncut.model.stock import BoxStock, CylinderStock, Stock
 from fusioncut.model.tools import (AptCutter, AptParameters, BallEndMill, BullNoseEndMill, ChamferMill, Drill,
@@ -201,19 +201,17 @@ class Job(_Strict):
 def load_job(path: str | Path) -> tuple[Job, Path]:
     """Read and validate a job file; errors name the file and the JSON path of the bad field."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError("job file not found", path) from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        where = f"{path}:{getattr(exc, 'lineno', 0)}:{getattr(exc, 'colno', 0)}"
-        raise InputError(f"not valid JSON: {getattr(exc, 'msg', exc)}", where) from None
+    if not path.exists():
+        raise InputError("job file not found", path)
+    data = read_json(path)
     try:
         return Job.model_validate(data), path.parent
     except ValidationError as exc:
         first = exc.errors()[0]
         loc = ".".join(str(p) for p in first["loc"]) or "<root>"
         raise InputError(f"{loc}: {first['msg']} ({exc.error_count()} problem(s) in all)", path) from None
+    except RecursionError:
+        raise InputError("not accepted: the JSON nests too deeply", path) from None
 
 
 def with_run_options(job: Job, **overrides: object) -> Job:

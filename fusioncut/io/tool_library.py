@@ -35,7 +35,6 @@ tool, so a library holding one drill can still serve the milling operations.
 """
 from __future__ import annotations
 
-import json
 import math
 import re
 import zipfile
@@ -48,6 +47,7 @@ from pydantic import AllowInfNan, BaseModel, ConfigDict, Field, Strict, Validati
 from fusioncut.errors import InputError, SourceLocation, ToolDefinitionError
 from fusioncut.io.apt import ASSUMED_FLUTE_LENGTH_DIAMETERS, INCH, make_tool, read_source_text
 from fusioncut.io.archive import read_member
+from fusioncut.io.json_input import parse_json
 from fusioncut.model.stock import BoxStock
 from fusioncut.model.tools import (
     AptCutter,
@@ -361,20 +361,8 @@ def pydantic_message(err: ValidationError, prefix: str) -> str:
     return f"{path or '<document>'}: {first['msg']}{extra}"
 
 
-def _parse_json(text: str, file: str) -> Any:
-    def reject(token: str) -> Any:
-        raise ValueError(f"{token} is not a number")
-
-    try:
-        return json.loads(text, parse_constant=reject)
-    except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON: {e.msg}", SourceLocation(file, e.lineno, e.colno)) from e
-    except (ValueError, RecursionError) as e:
-        raise InputError(f"not valid JSON: {e}", SourceLocation(file)) from e
-
-
 def _fusion_library_from_text(text: str, file: str) -> ToolLibrary:
-    doc = _parse_json(text, file)
+    doc = parse_json(text, file)
     try:
         lib = _FusionLibrary.model_validate(doc)
     except ValidationError as e:
@@ -693,7 +681,7 @@ def read_camotics_project(path: str | Path) -> CamoticsProject:
     if text.lstrip().startswith("<"):
         raise InputError("XML CAMotics projects are not supported (re-save as .camotics JSON)", SourceLocation(file))
     try:
-        proj = _CamProject.model_validate(_parse_json(text, file))
+        proj = _CamProject.model_validate(parse_json(text, file))
     except ValidationError as e:
         raise InputError(pydantic_message(e, ""), SourceLocation(file)) from e
     warnings: list[str] = []

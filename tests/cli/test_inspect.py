@@ -176,7 +176,7 @@ def test_names_with_brackets_are_shown_literally(tmp_path):
     assert [op["name"] for op in r["operations"]] == ["Contour [d2.4mm]"]
     res = runner.invoke(app, ["inspect", str(prog)], env={"COLUMNS": "200"})
     assert res.exit_code == 0, res.output
-    assert "part[v2].nc" in res.output
+    assert "part[v2].nc" in res.output.replace("\n", "")  # a long temporary path may wrap
     # the table cells: the tool's name and the operation's
     assert "│ [d2.4mm] │" in res.output and "│ Contour [d2.4mm] │" in res.output
 

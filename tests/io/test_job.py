@@ -71,3 +71,19 @@ def test_read_toolpath_dispatches_on_the_suffix(tmp_path):
         read_toolpath(tmp_path / "a.json")
     with pytest.raises(InputError, match="missing.nc"):
         read_toolpath(tmp_path / "missing.nc")
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000, '{"a":' * 100_000, "{\"name\": NaN}"])
+def test_a_job_file_that_breaks_the_parser_is_refused_naming_it(tmp_path, text):
+    """100,000 levels of nesting raised RecursionError out of the CLI (a traceback); NaN is no JSON number."""
+    path = tmp_path / "deep.json"
+    path.write_text(text)
+    with pytest.raises(InputError, match=r"deep\.json.*(nests too deeply|not a number)"):
+        load_job(path)
+
+
+def test_a_bad_job_file_names_its_line_and_column(tmp_path):
+    path = tmp_path / "bad.json"
+    path.write_text('{\n  "name": "x",\n  "stock": }\n')
+    with pytest.raises(InputError, match=r"bad\.json:3:12: not valid JSON"):
+        load_job(path)

@@ -84,7 +84,7 @@ def test_plain_names_pass(name):
 
 
 @pytest.mark.parametrize("name", ["", "..", "../x.nc", "a/b.nc", "a\\b.nc", ".hidden", "/etc/passwd",
-                                  "nul\x00.nc", " lead.nc", "a" * 200, "é.nc", "C:\\x.nc"])
+                                  "nul\x00.nc", " lead.nc", "a" * 256, "C:\\x.nc"])
 def test_unsafe_names_are_refused(name):
     with pytest.raises(InputError):
         check_name(name)
