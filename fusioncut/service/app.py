@@ -12,7 +12,6 @@ import asyncio
 import io
 import json
 import logging
-import math
 import os
 import shutil
 import threading
@@ -37,7 +36,7 @@ from fusioncut.service.core import ClusterUnavailable, Service
 from fusioncut.service.demo import DEMO_FILE, demo_gcode, demo_job
 from fusioncut.service.files import check_name, find_result_file, result_files
 from fusioncut.service.models import (ClDetail, FileInfo, FileList, JobList, JobStatus, Problem, ProgressInfo,
-                                      Scene, ServiceInfo, SummaryTable)
+                                      Scene, ServiceInfo, SummaryTable, json_safe)
 from fusioncut.service.scene_route import CL_QUERY, SCENE_RESPONSES, SceneAtCl, SceneRoutes
 from fusioncut.service.settings import Settings, key_hash
 from fusioncut.service.store import FINAL_STATES, JobRecord
@@ -111,17 +110,8 @@ async def _send_problem(send: Any, status: int, detail: str) -> None:
 # helpers
 
 
-def _clean(value: Any) -> Any:
-    """JSON-safe values: NaN and infinities become null, numpy scalars plain numbers."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if hasattr(value, "item") and not isinstance(value, (list, dict, str)):
-        return _clean(value.item())
-    return value
-
-
 def _records(df: Any) -> list[dict[str, Any]]:
-    return [{k: _clean(v) for k, v in row.items()} for row in df.astype(object).to_dict(orient="records")]
+    return [{k: json_safe(v) for k, v in row.items()} for row in df.astype(object).to_dict(orient="records")]
 
 
 PROBLEMS: dict[int | str, dict[str, Any]] = {
@@ -505,7 +495,7 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
                 stock = None
         names = {f.name for f in result_files(service.results_dir(rec))}
         cl = res.cl
-        cols = {c: [_clean(v) for v in cl[c].astype(object).tolist()]
+        cols = {c: [json_safe(v) for v in cl[c].astype(object).tolist()]
                 for c in ("cl", "x", "y", "z", "tool", "status", "operation")}
         return Scene(stock=stock, ipw="ipw.stl" if "ipw.stl" in names else None,
                      tools=res.metadata.get("tools", {}), cls=cols)
@@ -518,7 +508,7 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
             row = res.row(cl)
         except FusionCutError as exc:
             raise HTTPException(404, str(exc)) from None
-        return ClDetail(cl={k: _clean(v) for k, v in row.astype(object).to_dict().items()},
+        return ClDetail(cl={k: json_safe(v) for k, v in row.astype(object).to_dict().items()},
                         slices=_records(res.slices_of(cl)))
 
     @app.get("/api/jobs/{job_id}/plots/{kind}", tags=["results"], response_class=Response,

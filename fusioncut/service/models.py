@@ -1,6 +1,7 @@
 """Response models of the HTTP API (they are what the OpenAPI document shows)."""
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 from pydantic import BaseModel, Field
@@ -78,3 +79,12 @@ class ServiceInfo(BaseModel):
     max_cls: int = Field(description="largest job accepted, in CL segments")
     max_slices: int = Field(0, description=
         "largest job accepted, in slice evaluations (flute length / slice_height per CL)")
+
+
+def json_safe(value: Any) -> Any:
+    """JSON-safe values: NaN and infinities become null, numpy scalars plain numbers."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if hasattr(value, "item") and not isinstance(value, (list, dict, str)):
+        return json_safe(value.item())
+    return value

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import itertools
 import logging
-import math
 import threading
 from collections import OrderedDict
 from typing import Any, Literal
@@ -29,6 +28,7 @@ from fastapi.responses import FileResponse, JSONResponse
 from pydantic import BaseModel, Field
 
 from fusioncut.errors import FusionCutError
+from fusioncut.service.models import json_safe
 from fusioncut.service.scene_cache import SCENES_DIR, DEFAULT_MAX_TRIANGLES, build_scene, scene_name, want_name
 
 log = logging.getLogger("fusioncut.service")
@@ -65,14 +65,6 @@ SCENE_RESPONSES: dict[int | str, dict[str, Any]] = {
 }
 
 
-def _clean(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if hasattr(value, "item") and not isinstance(value, (list, dict, str)):
-        return _clean(value.item())
-    return value
-
-
 class SceneRoutes:
     """The scene requests of one service: in-flight replays by job, failures remembered."""
 
@@ -94,10 +86,10 @@ class SceneRoutes:
         state, message = self._mesh_state(rec, cl)
         p = self.service.progress(rec)
         done = max(p.done, int(res.cl["cl"].max()) + 1)
-        row_d = {k: _clean(v) for k, v in row.astype(object).to_dict().items()}
+        row_d = {k: json_safe(v) for k, v in row.astype(object).to_dict().items()}
         spec = (res.metadata.get("tools") or {}).get(row_d.get("tool"), {})
         tool = {"label": row_d.get("tool"), **spec, "position_mm": [row_d["x"], row_d["y"], row_d["z"]]}
-        slices = [{k: _clean(v) for k, v in r.items()}
+        slices = [{k: json_safe(v) for k, v in r.items()}
                   for r in res.slices_of(cl).astype(object).to_dict(orient="records")]
         body = SceneAtCl(cl=cl, state=state, message=message,
                          mesh=f"/api/jobs/{rec.id}/scene.glb?cl={cl}" if state == "ready" else None,
