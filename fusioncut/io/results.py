@@ -599,10 +599,6 @@ def _to_arrow(df: pd.DataFrame, schema: pa.Schema) -> pa.Table:
     return pa.table(plain, schema=schema)
 
 
-def _from_arrow(table: pa.Table, columns: tuple[Column, ...]) -> pd.DataFrame:
-    return _coerce(table.to_pandas(), columns)
-
-
 # --------------------------------------------------------------------------------------------------
 # reading
 
@@ -645,10 +641,20 @@ def _read_csv(path: Path, columns: tuple[Column, ...]) -> pd.DataFrame:
     # only an empty float cell is NaN; text like "NA" or "" stays text
     df = pd.read_csv(path, dtype=dtypes, keep_default_na=False, na_values={c: [""] for c in floats},
                      encoding="utf-8", **kw)
+    return _coerce(_with_later_columns(df, columns, path), columns)
+
+
+# Columns added after results were first written, with the value they mean in older results: such a
+# folder still loads (a CL of an older run was never called rubbing).
+ADDED_COLUMNS: dict[str, Any] = {"rubbing_slices": 0}
+
+
+def _with_later_columns(df: pd.DataFrame, columns: tuple[Column, ...], path: Path) -> pd.DataFrame:
+    """``df`` with the :data:`ADDED_COLUMNS` it lacks filled in; any other missing column is an error."""
     missing = [c.name for c in columns if c.name not in df]
-    if missing:
-        raise InputError(f"missing columns {', '.join(missing)}", path)
-    return _coerce(df, columns)
+    if any(name not in ADDED_COLUMNS for name in missing):
+        raise InputError(f"missing columns {', '.join(n for n in missing if n not in ADDED_COLUMNS)}", path)
+    return df.assign(**{name: ADDED_COLUMNS[name] for name in missing}) if missing else df
 
 
 def _read_table(directory: Path, name: str, columns: tuple[Column, ...]) -> tuple[pd.DataFrame, dict, str]:
@@ -656,10 +662,8 @@ def _read_table(directory: Path, name: str, columns: tuple[Column, ...]) -> tupl
     if pq_path.exists():
         table = pq.read_table(pq_path)
         raw = (table.schema.metadata or {}).get(METADATA_KEY)
-        missing = [c.name for c in columns if c.name not in table.column_names]
-        if missing:
-            raise InputError(f"missing columns {', '.join(missing)}", pq_path)
-        return _from_arrow(table, columns), (json.loads(raw) if raw else {}), "parquet"
+        df = _with_later_columns(table.to_pandas(), columns, pq_path)
+        return _coerce(df, columns), (json.loads(raw) if raw else {}), "parquet"
     if csv_path.exists():
         return _read_csv(csv_path, columns), {}, "csv"
     raise InputError(f"no {name}.parquet or {name}.csv: not a FusionCut results directory", directory)

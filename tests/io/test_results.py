@@ -325,6 +325,25 @@ def test_csv_only_directory_loads(tmp_path, written):
     assert r.source == "csv" and len(r.cl) == 7
 
 
+@pytest.mark.parametrize("prefer", ["parquet", "csv"])
+def test_results_written_before_a_column_was_added_still_load(written, prefer):
+    """Folders written before ``rubbing_slices`` existed load with 0 there; any other missing column
+    is still an error naming the file."""
+    import pyarrow.parquet as pq
+
+    path, _ = written
+    table = pq.read_table(path / "cl.parquet")
+    pq.write_table(table.drop(["rubbing_slices"]).replace_schema_metadata(table.schema.metadata), path / "cl.parquet")
+    csv = pd.read_csv(path / "cl.csv", dtype=str, keep_default_na=False)
+    csv.drop(columns=["rubbing_slices"]).to_csv(path / "cl.csv", index=False)
+    r = load_results(path, prefer=prefer)
+    assert len(r.cl) == 7 and (r.cl["rubbing_slices"] == 0).all() and r.cl["rubbing_slices"].dtype == "int64"
+    csv.drop(columns=["rubbing_slices", "ae_mm"]).to_csv(path / "cl.csv", index=False)
+    (path / "cl.parquet").unlink()
+    with pytest.raises(FusionCutError, match=r"cl\.csv: missing columns ae_mm$"):
+        load_results(path, prefer=prefer)
+
+
 def test_load_errors_are_fusioncut_errors(tmp_path):
     with pytest.raises(FusionCutError, match="not found"):
         load_results(tmp_path / "missing")
