@@ -5,8 +5,29 @@ that a landing is red or green for the code, not for the draw; local runs draw n
 replay the failures they found from ``.hypothesis/``).
 """
 import os
+import struct
+import zipfile
+
+import pytest
 
 from hypothesis import settings
 
 settings.register_profile("ci", derandomize=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+@pytest.fixture
+def lying_archive():
+    """``make(path, member, true_size, header_size)``: a zip whose one member inflates to ``true_size``
+    zero bytes while its local header and central-directory entry both say ``header_size``."""
+    def make(path, member: str, true_size: int, header_size: int) -> None:
+        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            with zf.open(member, "w") as out:
+                block = bytes(1 << 20)
+                for _ in range(true_size >> 20):
+                    out.write(block)
+        raw = bytearray(path.read_bytes())
+        struct.pack_into("<I", raw, raw.index(b"PK\x03\x04") + 22, header_size)  # local header
+        struct.pack_into("<I", raw, raw.rindex(b"PK\x01\x02") + 24, header_size)  # central directory
+        path.write_bytes(bytes(raw))
+    return make

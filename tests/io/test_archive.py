@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import io
-import struct
 import tracemalloc
 import zipfile
 
@@ -16,23 +15,7 @@ from fusioncut.io.tool_library import read_tool_library
 MB = 1024 * 1024
 
 
-def lying_archive(path, member: str, true_size: int, header_size: int) -> None:
-    """A zip whose one member inflates to ``true_size`` zero bytes while its local header and its
-    central-directory entry both say ``header_size``."""
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        with zf.open(member, "w") as out:
-            block = bytes(MB)
-            for _ in range(true_size // MB):
-                out.write(block)
-    raw = bytearray(path.read_bytes())
-    local = raw.index(b"PK\x03\x04")
-    struct.pack_into("<I", raw, local + 22, header_size)  # local header: uncompressed size
-    central = raw.rindex(b"PK\x01\x02")
-    struct.pack_into("<I", raw, central + 24, header_size)  # central directory: uncompressed size
-    path.write_bytes(bytes(raw))
-
-
-def test_lying_header_is_refused_without_inflating_the_member(tmp_path):
+def test_lying_header_is_refused_without_inflating_the_member(tmp_path, lying_archive):
     p = tmp_path / "bomb.tools"
     lying_archive(p, "tools.json", 200 * MB, 1000)
     assert p.stat().st_size < 2 * MB  # 200 MB of zeros deflate to ~200 KB

@@ -82,6 +82,24 @@ def test_multipart_job_field_nesting_is_refused(client):
     assert r.status_code == 422 and "nests too deeply" in r.json()["detail"]
 
 
+def test_a_lying_tools_archive_upload_is_refused_without_memory_growth(client, service, tmp_path, lying_archive):
+    """A Fusion .tools whose zip header says 1,000 bytes and that inflates to 200 MB: once 6 s and
+    +150-2,000 MB in an upload. Refused at once naming the member, the service's memory flat."""
+    bomb = tmp_path / "lib.tools"
+    lying_archive(bomb, "tools.json", 200 << 20, 1000)
+    files = [("toolpath", ("tiny.nc", TINY_GCODE.encode(), "text/plain")),
+             ("tool_library", ("lib.tools", bomb.read_bytes(), "application/octet-stream"))]
+    client.post("/api/jobs", json={"job": {**TINY_JOB, "tools": []}, "files": {"tiny.nc": TINY_GCODE}})
+    before = _settled_rss_mb(service)
+    t0 = time.monotonic()
+    r = client.post("/api/jobs", files=files, data={"job": json.dumps({k: v for k, v in TINY_JOB.items()
+                                                                       if k != "toolpaths"})})
+    elapsed = time.monotonic() - t0
+    assert r.status_code == 422, r.text
+    assert "tools.json" in r.json()["detail"] and "Traceback" not in r.json()["detail"]
+    assert elapsed < 1.0 and _rss_mb(service) - before < 50
+
+
 def test_info_states_the_limits(client):
     info = client.get("/api/info").json()
     assert info["max_cls"] == 2000 and info["max_slices"] == 100_000
