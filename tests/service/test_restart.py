@@ -97,18 +97,10 @@ def test_resumed_job_equals_an_uninterrupted_run(tmp_path):
         with b.client() as c:
             total = c.get(f"/api/jobs/{med}").json()["progress"]["total"]
             _check_resumed(c, med, total)
-            got = tmp_path / "got"
-            got.mkdir()
-            for name in ("cl.parquet", "slices.parquet", "metadata.json", "summary.csv"):
-                (got / name).write_bytes(c.get(f"/api/jobs/{med}/files/{name}").content)
+            got = _download_results(c, med, tmp_path / "got")
     finally:
         b.stop()
-    from fusioncut.io.results import load_results
-
-    a, ref = load_results(got), reference_results(sub, tmp_path / "ref")
-    pd.testing.assert_frame_equal(comparable(a.cl), comparable(ref.cl))
-    pd.testing.assert_frame_equal(comparable(a.slices), comparable(ref.slices))
-    pd.testing.assert_frame_equal(a.summary.drop(columns=["time_s"]), ref.summary.drop(columns=["time_s"]))
+    _assert_equal_to_uninterrupted(got, sub, tmp_path / "ref")
 
 
 @pytest.mark.slow
@@ -130,15 +122,23 @@ def test_a_graceful_stop_checkpoints_mid_job_and_resumes_there(tmp_path):
             resumed_at = int(log.split("resuming from the checkpoint")[1].split(" at CL ")[1].split()[0])
             assert 45 <= resumed_at < total
             assert "(2 attempts)" in c.get(f"/api/jobs/{med}").json()["message"]
-            got = tmp_path / "got"
-            got.mkdir()
-            for name in ("cl.parquet", "slices.parquet", "metadata.json", "summary.csv"):
-                (got / name).write_bytes(c.get(f"/api/jobs/{med}/files/{name}").content)
+            got = _download_results(c, med, tmp_path / "got")
     finally:
         b.stop()
+    _assert_equal_to_uninterrupted(got, sub, tmp_path / "ref")
+
+
+def _download_results(c, job: str, folder):
+    folder.mkdir()
+    for name in ("cl.parquet", "slices.parquet", "metadata.json", "summary.csv"):
+        (folder / name).write_bytes(c.get(f"/api/jobs/{job}/files/{name}").content)
+    return folder
+
+
+def _assert_equal_to_uninterrupted(got, sub, ref_dir) -> None:
     from fusioncut.io.results import load_results
 
-    a, ref = load_results(got), reference_results(sub, tmp_path / "ref")
+    a, ref = load_results(got), reference_results(sub, ref_dir)
     pd.testing.assert_frame_equal(comparable(a.cl), comparable(ref.cl))
     pd.testing.assert_frame_equal(comparable(a.slices), comparable(ref.slices))
     pd.testing.assert_frame_equal(a.summary.drop(columns=["time_s"]), ref.summary.drop(columns=["time_s"]))
