@@ -511,7 +511,7 @@ def difference(a: Region, b: Region) -> Difference:
     islands = [loop for loop in new_loops if _island(loop)]
     lost_area = region_area(_chain(lost, verts.points))
     if islands:  # removed with the rest: their area is lost, the tool's edges round them touch nothing
-        new_loops = [loop for loop in new_loops if not _island(loop)]
+        new_loops = [loop for loop in new_loops if not any(loop is i for i in islands)]
         lost_area += region_area(islands)
         gone = {e for loop in islands for e in loop}
         b_kept = [e for e in b_kept if reversed_edge(e) not in gone]
@@ -527,6 +527,10 @@ ISLAND = 1e-3
 
 
 def _island(loop: tuple[Edge, ...]) -> bool:
+    x, y = loop[0].x0, loop[0].y0
+    for e in loop:  # most loops are decided by their first vertices: far apart, no island
+        if abs(e.x1 - x) >= ISLAND or abs(e.y1 - y) >= ISLAND:
+            return False
     x0, y0, x1, y1 = region_box((loop,))
     return x1 - x0 < ISLAND and y1 - y0 < ISLAND and region_area((loop,)) > 0
 
