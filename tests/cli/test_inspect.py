@@ -166,41 +166,47 @@ def test_missing_file_and_bad_library_are_errors(tmp_path):
     assert res.exit_code == 2 and "lib.tbl:2" in res.output.replace("\n", "")
 
 
-def test_names_with_brackets_are_shown_literally(tmp_path, monkeypatch):
-    # rich reads "[d2.4mm]" as a style tag and drops it unless the text is escaped
-    from fusioncut.cli import inspect as inspect_cli
+@pytest.fixture
+def wide_consoles(monkeypatch):
+    """The CLI's consoles 300 columns wide, whatever the terminal: rich reads COLUMNS when a console is
+    made (at import), so a COLUMNS given to the command does nothing, and CI's 80 columns wrap paths."""
+    from fusioncut.cli import _errors, inspect as inspect_cli
 
-    # the console's width is read from COLUMNS when the module is imported: set it, whatever the terminal
-    monkeypatch.setattr(inspect_cli.console, "width", 300)
+    for console in (inspect_cli.console, _errors.err_console):
+        monkeypatch.setattr(console, "width", 300)
+
+
+def test_names_with_brackets_are_shown_literally(tmp_path, wide_consoles):
+    # rich reads "[d2.4mm]" as a style tag and drops it unless the text is escaped
     prog = tmp_path / "part[v2].nc"
     prog.write_text("G21\n(T1 D=2.4 CR=0 - ZMIN=-3 - flat end mill [d2.4mm])\n(Contour [d2.4mm])\nT1\n"
                     "G0 X0 Y0 Z1\nG1 Z-1 F100\nX5\nM30\n")
     r = inspect_json(str(prog))
     assert [t["name"] for t in r["tools"]] == ["[d2.4mm]"] and r["tools"][0]["kind"] == "flat"
     assert [op["name"] for op in r["operations"]] == ["Contour [d2.4mm]"]
-    res = runner.invoke(app, ["inspect", str(prog)], env={"COLUMNS": "200"})
+    res = runner.invoke(app, ["inspect", str(prog)])
     assert res.exit_code == 0, res.output
     assert "part[v2].nc" in res.output
     # the table cells: the tool's name and the operation's
     assert "│ [d2.4mm] │" in res.output and "│ Contour [d2.4mm] │" in res.output
 
 
-def test_errors_show_bracketed_paths_literally(tmp_path):
+def test_errors_show_bracketed_paths_literally(tmp_path, wide_consoles):
     prog = tmp_path / "bad[d2.4mm].nc"
     prog.write_text("G21\nG1 X[1 + F100\n")
-    res = runner.invoke(app, ["inspect", str(prog)], env={"COLUMNS": "300"})
+    res = runner.invoke(app, ["inspect", str(prog)])
     assert res.exit_code == 2
-    assert "bad[d2.4mm].nc:2" in res.output.replace("\n", "")
+    assert "bad[d2.4mm].nc:2" in res.output
 
 
-def test_percent_line_with_text_is_reported_not_the_end(tmp_path):
+def test_percent_line_with_text_is_reported_not_the_end(tmp_path, wide_consoles):
     prog = tmp_path / "hobby.nc"
     prog.write_text("%\n(2D Contour1)\nG21 G90\nG0 X0 Y0 Z5\n% vfd enable\nG1 Z-1 F300\nX10\nY10\nM30\n%\n")
     r = inspect_json(str(prog))
     assert r["moves"]["total"] == 4
     assert r["warnings"] == [f"{prog}:5:1: '% vfd enable': a % line with text after the % is not a program "
                              "start or end (only a lone % is) (ignored)"]
-    res = runner.invoke(app, ["inspect", str(prog)], env={"COLUMNS": "300"})
+    res = runner.invoke(app, ["inspect", str(prog)])
     assert res.exit_code == 0 and "'% vfd enable'" in res.output
 
 
@@ -213,11 +219,11 @@ def test_a_program_without_moves_says_why(tmp_path):
                              "(2 with axis words)", f"{prog}: no moves: M30 at line 2 ends the program before any move"]
 
 
-def test_max_moves_bounds_what_a_program_expands_to(tmp_path):
+def test_max_moves_bounds_what_a_program_expands_to(tmp_path, wide_consoles):
     prog = tmp_path / "loop.nc"
     prog.write_text("F100\no1 repeat [100]\nG1 X1\nG1 X0\no1 endrepeat\n")
     assert inspect_json(str(prog))["moves"]["total"] == 200
     assert inspect_json(str(prog), "--max-moves", "0")["moves"]["total"] == 200
-    res = runner.invoke(app, ["inspect", str(prog), "--max-moves", "199"], env={"COLUMNS": "300"})
+    res = runner.invoke(app, ["inspect", str(prog), "--max-moves", "199"])
     assert res.exit_code == 2 and "Traceback" not in res.output
     assert "loop.nc:2:1: the program expands to more than 199 moves (a repeat loop of 100 × 2)" in res.output
