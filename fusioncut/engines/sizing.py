@@ -33,7 +33,7 @@ from fusioncut.model.stock import BoxStock, CylinderStock, Stock
 from fusioncut.model.tools import MillingTool
 
 _CHUNK = 1 << 16  # pieces counted per numpy pass: 65,536 x a few float64 arrays, about 3 MB
-_SPIRAL_PIECES = 1 << 12  # half turns of a spiral up to which its circular pieces are made to be counted
+_SPIRAL_PIECES = 1 << 12  # circular pieces of a spiral up to which they are made to be counted
 _EPS = 1e-9  # as segments._EPS: shorter rises or horizontal travels are no ramp
 
 
@@ -163,15 +163,15 @@ def move_segments(m: Move, max_segment_length: float | None, chord_tolerance: fl
     """CL segments :func:`segments.cl_segments` makes of ``m``, counted without making them; once
     the count passes ``room`` (if given) a number above ``room`` is returned, not the exact count.
 
-    A spiral arc (end radius off the start's) is first followed by circular pieces, at least one a
-    half turn (:meth:`ArcMove.circular_pieces`): up to :data:`_SPIRAL_PIECES` half turns they are
-    made and each is counted; beyond, the count is a lower bound (the half turns, or the arc's own
-    count without the pieces, whichever is larger), which is what a refusal needs."""
+    A spiral arc (end radius off the start's) is first followed by circular pieces
+    (:meth:`ArcMove.circular_pieces`): up to :data:`_SPIRAL_PIECES` of them they are made and each is
+    counted; beyond, the count is a lower bound (the pieces, or the arc's own count without them,
+    whichever is larger), which is what a refusal needs."""
     room = math.inf if room is None else room  # type: ignore[assignment]
     if not isinstance(m, ArcMove):
         return _line_count(m, max_segment_length, ramp_step)
-    if getattr(m, "is_spiral", False):
-        n = max(1, math.ceil(abs(m.sweep) / math.pi - 1e-12))
+    if m.is_spiral:
+        n = m.circular_piece_count(chord_tolerance)
         if n > _SPIRAL_PIECES or n > room:
             return max(n, _arc_count(m, max_segment_length, chord_tolerance, ramp_step, room))
         total = 0

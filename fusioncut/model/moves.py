@@ -244,6 +244,14 @@ class ArcMove(Move):
         I/J and end points, so real arcs are spirals by a few µm; R-format arcs by far less)."""
         return abs(self.end_radius - self.radius) > SPIRAL_EPS
 
+    def circular_piece_count(self, tolerance: float) -> int:
+        """How many pieces :meth:`circular_pieces` makes (1 for an arc that is no spiral), without
+        making them."""
+        if not self.is_spiral:
+            return 1
+        return max(math.ceil(abs(self.end_radius - self.radius) / tolerance - 1e-12),
+                   math.ceil(abs(self.sweep) / math.pi - 1e-12), 1)
+
     def circular_pieces(self, tolerance: float) -> list[ArcMove]:
         """This arc as arcs of true circles about its programmed centre, for the engine to sweep.
 
@@ -261,8 +269,7 @@ class ArcMove(Move):
         if not self.is_spiral:
             return [self]
         a, b, _ = self.plane.axes
-        n = max(math.ceil(abs(self.end_radius - self.radius) / tolerance - 1e-12),
-                math.ceil(abs(self.sweep) / math.pi - 1e-12), 1)
+        n = self.circular_piece_count(tolerance)
         if n > _MAX_SPIRAL_PIECES:
             raise InputError(f"a spiral arc (radius {self.radius:.6g} -> {self.end_radius:.6g} mm) needs {n:,} "
                              f"circular pieces to stay within {tolerance:g} mm of its path", self.source)

@@ -111,6 +111,15 @@ def test_a_spiral_of_many_turns_is_refused_at_once():
     assert "CL segments" in str(err) and cpu < 1.0 and mb < 50
 
 
+def test_a_spiral_far_off_its_circle_is_refused_at_once():
+    # a quarter turn whose end radius is 100 mm off its start's: 10 million circular pieces at a
+    # chord tolerance of 1e-5 mm, counted without making them
+    arc = ArcMove((5.0, 0.0, 0.0), (0.0, 105.0, 0.0), feed=300.0, center=(0.0, 0.0, 0.0))
+    assert arc.circular_piece_count(1e-5) == 10_000_000
+    err, cpu, mb = _refused([arc], EngineOptions(chord_tolerance=1e-5))
+    assert "CL segments" in str(err) and cpu < 1.0 and mb < 50
+
+
 def test_slices_snapshots_and_checkpoints_are_counted():
     lines = [LinearMove((0.0, 0.0, -1.0), (100.0, 0.0, -1.0), feed=600.0)]
     size = size_job(lines, EngineOptions(max_segment_length=1.0, slice_height=0.5), _flute, checkpoint_every=30,

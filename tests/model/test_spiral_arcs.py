@@ -30,7 +30,7 @@ def test_pieces_are_circles_about_the_centre_within_the_tolerance_of_the_spiral(
     assert arc.is_spiral
     pieces = arc.circular_pieces(tol)
     a, b, n = plane.axes
-    assert len(pieces) >= abs(dr) / tol
+    assert len(pieces) >= abs(dr) / tol and len(pieces) == arc.circular_piece_count(tol)
     assert pieces[0].start == arc.start
     assert math.dist(pieces[-1].end, arc.end) <= tol + 1e-12
     assert pieces[-1].end[n] == arc.end[n]
