@@ -1,113 +1,187 @@
-"""What every engagement engine offers, whatever its kernel."""
+"""What every engagement engine offers, whatever its kernel: its options, its sweep methods and the
+:class:`Engine` protocol the runner drives."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
-from typing import Literal, Protocol
+from typing import Any, Protocol
 
-from fusioncut.errors import JobTooLarge
+from fusioncut.errors import InputError, JobTooLarge
 from fusioncut.model.engagement import EngagementMap
+from fusioncut.model.moves import Toolpath
 from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool
-from fusioncut.model.moves import Toolpath
+
+__all__ = ["LOWER_BOUNDS", "Engine", "EngineKind", "EngineOptions", "SweepMethod"]
+
+
+class SweepMethod(StrEnum):
+    """How a CL's swept volume is built; the value is what results and job files say.
+
+    ``EXACT``: the tool's exact swept solid. ``SAMPLED``: the published method, a union of tool
+    copies every R/4 along the move. ``STEP``: a piece of a ramp or helix swept exactly as a level
+    step (:func:`fusioncut.engines.segments.step_motion`); reported, never asked for.
+    """
+
+    EXACT = "exact"
+    SAMPLED = "sampled"
+    STEP = "step"
+
+
+class EngineKind(StrEnum):
+    """Which engine runs the CLs: the B-Rep engine in this process, or over Dask workers."""
+
+    BREP = "brep"
+    PARALLEL_BREP = "parallel-brep"
+
+
+def _option(default: Any, help: str) -> Any:
+    """A field of :class:`EngineOptions` with its one-paragraph help (units, what ``None`` means),
+    read by the job schema, the service schema and the CLI flags (immutable defaults only)."""
+    return field(default=default, metadata={"help": help})
 
 
 @dataclass(frozen=True)
 class EngineOptions:
-    """Knobs of a run (mm unless stated).
+    """Knobs of a run; lengths in mm. Each field's ``metadata["help"]`` documents it.
 
-    ``slice_height``: axial slice spacing; slice k covers [k, k+1)*slice_height above the tip and is
-    evaluated in the middle of its part that touches material. ``max_segment_length``: longer moves
-    are split into CL segments of at most this length (None: as programmed). ``chord_tolerance``:
-    ZX / YZ arcs become chords within this distance of the path. ``ramp_step``: ramps and helices
-    up to a 1:5 slope are swept as level steps whose tool positions stay within this distance of
-    the path (:mod:`fusioncut.engines.segments` says why not the oblique sweep, and why not finer).
-    ``sweep``: "exact" or "sampled" (tool copies every R/4, the published method). ``failure_dir``:
-    where the shapes of a failed Boolean are saved as .brep. ``merge_growth``: merge same-surface
-    faces of a workpiece cell when its face count grew by this fraction since the last merge.
+    Invariants: the lengths that drive how much work a run makes are bounded below
+    (:data:`LOWER_BOUNDS`, checked here, before any move is expanded); ``sweep`` is a
+    :class:`SweepMethod` one may ask for (``exact`` or ``sampled``; strings are accepted).
 
-    ``cell_size``: the workpiece is kept as square columns of this size (mm), 20 by default, so that
-    each Boolean touches a bounded piece; ``None`` keeps it whole. Cells give the whole workpiece's
-    results on lines, arcs, trochoids and helical entries (tested to 0.001° and 1e-6, and a helical
-    entry centred on a cell corner conserves volume to 1e-9). On the quick Titan-like benchmark 20 mm
-    cells took 156 s against 275 s for the whole workpiece, and the adaptive median 48 against 85 ms.
-    A cell that a level flat-end-mill cut leaves solid is split into quarter squares, down to a
-    quarter of ``cell_size`` (``fusioncut.engines.brep.engine.BRepEngine._quarter`` says why that far).
-
-    ``fuzzy``: the Booleans' fuzzy value (mm). ``None`` means 1e-6 with cells and 0 (exact) without:
-    cells need it (with 0, OCCT returned an empty Common where a sweep face lay on a cell wall), the
-    whole workpiece does better without (1e-6 leaked 1.3e-6 of the stock volume over 540 CLs of a
-    real program). ``fuzzy_retries``: the values a failed Boolean is retried with.
-
-    ``kernel_threads``: let the kernel run each Boolean on its own threads. Alone on 2 cores this
-    took the quick benchmark's adaptive median from 68 to 59–65 ms; with two runs sharing the cores it
-    cost 6–13% (1055_utab, first 300 CLs), so the parallel engine's workers turn it off where they
-    have a core each, and keep it where their host has a core to spare (a lone worker on 2 cores).
-
-    ``ceiling_pixel``: pixel size (mm) of the material's height bounds
-    (:class:`fusioncut.engines.ceiling.MaterialCeiling`), with which a cell whose material the sweep
-    provably misses skips its Booleans; ``None`` runs every Boolean. Used with exact sweeps only; it
-    changes no result, only the time.
-
-    ``layers``: keep cells that only cylindrical tools (flat end mills with the flute's diameter up
-    the shank) have cut horizontally or vertically as stacks of 2.5D layers, cut by 2D Booleans
-    (:mod:`fusioncut.engines.brep.layers`); the first other cut turns a cell into a solid for good.
-    Same material, same contact faces, fewer and cheaper kernel operations. Exact sweeps only.
-    ``max_layers``: a layered cell with more layers than this goes on as a solid. A cut costs a 2D
-    difference per layer it takes material from (0.1-0.6 ms in closed form; 1.5 ms with OCCT's
-    General Fuse, when this was 6), and a helical entry's steps leave a ledge each on the bore (44 a
-    turn on the Titan-like benchmark): its first helix and the trochoids after it (CLs 997-1596)
-    took 14.2 s with 6 (the bore's cells solid), 10.2 s with 30 and 3.0 s with 100 (all layered),
-    with the same maps CL by CL.
-
-    ``min_chip_thickness`` (mm, default 1 µm, 0 turns it off): a slice band whose removed material
-    is thinner than this across the path (removed volume / contact height / horizontal travel of the
-    CL) only rubs, as the µm skins a post's rounded coordinates leave on an earlier pass's walls: its
-    arcs are no engagement and do not count in ap (:mod:`fusioncut.engines.chip`). Known only where
-    the CL's cells that lost material were all layered; elsewhere no slice is called rubbing.
-
-    Lower bounds (:data:`LOWER_BOUNDS`, checked when the options are made, before any move is
-    expanded): 1e-3 mm for ``max_segment_length``, ``ramp_step`` and ``slice_height``, 1e-5 mm for
-    ``chord_tolerance``. Below them a value buys no accuracy and only multiplies the work: 1 µm is
-    the kernel's own working precision scale (the Booleans' fuzzy values are 1e-6 to 1e-4 mm) and
-    posts write coordinates to 1 µm (3 decimals) or 0.1 µm, so CLs, steps or slices closer than that
-    are closer than the program itself says where the tool is; a chord's sagitta of 1e-5 mm is a
-    hundredth of the default and ten times the Booleans' default fuzzy value (a 5 mm arc then takes
-    1,571 chords a turn). ``max_segment_length: 1e-5`` on a 5-line job once took 57 s and 1.8 GB
-    before it was refused; how much work a job makes within the bounds is sized by
-    :mod:`fusioncut.engines.sizing`.
+    The mechanisms behind the options are described where they act: cells, their quarters and the
+    Boolean's fuzzy values in :mod:`fusioncut.engines.brep.engine`, the height map
+    (``ceiling_pixel``) in :mod:`fusioncut.engines.ceiling`, layers in
+    :mod:`fusioncut.engines.brep.layers`, steps and chords in :mod:`fusioncut.engines.segments`,
+    rubbing (``min_chip_thickness``; known only where the CL's cells that lost material were all
+    layered) in :mod:`fusioncut.engines.chip`. Why the defaults are what they are:
+    ``docs/decisions/engine-options.md``.
     """
 
-    slice_height: float = 1.0
-    max_segment_length: float | None = None
-    chord_tolerance: float = 1e-3
-    ramp_step: float = 5e-2
-    sweep: Literal["exact", "sampled"] = "exact"
-    failure_dir: Path | None = None
-    merge_growth: float = 0.5
-    fuzzy: float | None = None
-    fuzzy_retries: tuple[float, ...] = (1e-6, 1e-5, 1e-4)
-    cell_size: float | None = 20.0
-    kernel_threads: bool = True
-    ceiling_pixel: float | None = 0.1
-    layers: bool = True
-    max_layers: int = 128
-    min_chip_thickness: float = 1e-3
+    slice_height: float = _option(1.0, (
+        "Axial slice spacing (mm): slice k covers [k, k+1) * slice_height above the tool tip and is "
+        "evaluated in the middle of its part that touches material."))
+    max_segment_length: float | None = _option(None, (
+        "Longer moves are split into CL segments of at most this length (mm); None keeps the moves "
+        "as programmed."))
+    chord_tolerance: float = _option(1e-3, (
+        "ZX / YZ arcs and steep helices become chords within this distance (mm) of the path."))
+    ramp_step: float = _option(5e-2, (
+        "Ramps and helices up to a 1:5 slope are swept as level steps whose tool positions stay "
+        "within this distance (mm) of the path (fusioncut.engines.segments says why)."))
+    sweep: SweepMethod = _option(SweepMethod.EXACT, (
+        "How a CL's swept volume is built: 'exact' (the tool's exact swept solid) or 'sampled' "
+        "(tool copies every R/4, the published method)."))
+    failure_dir: Path | None = _option(None, (
+        "Folder where the workpiece and sweep of a failed Boolean are saved as .brep; None: "
+        "./fusioncut-failures."))
+    merge_growth: float = _option(0.5, (
+        "Merge a workpiece cell's same-surface faces once its face count grew by this fraction "
+        "since its last merge (dimensionless)."))
+    fuzzy: float | None = _option(None, (
+        "The Booleans' first fuzzy value (mm); None: 1e-6 with cells, 0 (exact) for a whole "
+        "workpiece."))
+    fuzzy_retries: tuple[float, ...] = _option((1e-6, 1e-5, 1e-4), (
+        "Fuzzy values (mm) a failed Boolean is retried with, in order."))
+    cell_size: float | None = _option(20.0, (
+        "The workpiece is kept as square columns of this size (mm) so that each Boolean touches a "
+        "bounded piece; a solid cell may be split into quarters down to a quarter of it. None keeps "
+        "the workpiece whole."))
+    kernel_threads: bool = _option(True, (
+        "Let the kernel run each Boolean on its own threads (parallel workers turn it off where "
+        "they have a core each)."))
+    ceiling_pixel: float | None = _option(0.1, (
+        "Pixel size (mm) of the material's height map, with which a cell the sweep provably misses "
+        "skips its Booleans; None runs every Boolean. Exact sweeps only; changes no result."))
+    layers: bool = _option(True, (
+        "Keep cells that only cylindrical tools cut horizontally or vertically as stacks of 2.5D "
+        "layers cut by 2D Booleans (same material and contact, cheaper). Exact sweeps only."))
+    max_layers: int = _option(128, (
+        "A layered cell with more layers than this is cut as a solid from then on."))
+    min_chip_thickness: float = _option(1e-3, (
+        "A slice band whose removed material is thinner than this (mm) across the path only rubs: "
+        "its arcs are no engagement and do not count in ap; 0 turns the test off."))
 
     def __post_init__(self) -> None:
+        try:
+            sweep = SweepMethod(self.sweep)
+        except ValueError:
+            sweep = None
+        if sweep not in (SweepMethod.EXACT, SweepMethod.SAMPLED):
+            raise InputError(f"options.sweep: {self.sweep!r} is not one of 'exact', 'sampled'")
+        object.__setattr__(self, "sweep", sweep)
         for name, low in LOWER_BOUNDS.items():
             value = getattr(self, name)
             if value is not None and not value >= low:
                 raise JobTooLarge(f"options.{name}: {value:g} mm is below its lower bound of {low:g} mm "
                                   "(finer buys no accuracy, only work; see EngineOptions)")
 
+    @property
+    def exact(self) -> bool:
+        """Whether CLs are swept exactly (the height map and the layers need it)."""
+        return self.sweep == SweepMethod.EXACT
 
-# mm; EngineOptions' docstring says why these values
+
+# mm. Below these a value buys no accuracy and only multiplies the work: 1 µm is the kernel's working
+# precision scale (the Booleans' fuzzy values are 1e-6 to 1e-4 mm) and posts write coordinates to 1 µm
+# or 0.1 µm, so CLs, steps or slices closer than that are closer than the program says where the tool
+# is; a chord's sagitta of 1e-5 mm is a hundredth of the default and ten times the default fuzzy value.
+# How much work a job makes within the bounds is sized by fusioncut.engines.sizing.
 LOWER_BOUNDS = {"max_segment_length": 1e-3, "ramp_step": 1e-3, "slice_height": 1e-3, "chord_tolerance": 1e-5}
 
 
-class EngagementEngine(Protocol):
-    def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
-        """Yield one EngagementMap per CL segment, in order; never skip one."""
+class Engine(Protocol):
+    """What the runner (:mod:`fusioncut.runner`) drives, declared once.
+
+    ``start`` (or ``load_checkpoint``) sets the workpiece, ``process`` yields one map per CL segment
+    from a CL index on, in order, never skipping one; after each map the engine state (``ipw``,
+    ``ipw_volume``, ``removed_total``, a checkpoint) includes that CL and no later one. A checkpoint of
+    one engine kind resumes in any other. ``options`` may be replaced between runs (the runner sets
+    the cell size a checkpoint was cut into). Volumes are mm³.
+    """
+
+    options: EngineOptions
+    stock_volume: float
+    removed_total: float
+
+    @property
+    def kind(self) -> EngineKind:
+        """Which engine this is (recorded with the results)."""
+        ...
+
+    @property
+    def shares_cells(self) -> bool:
+        """Whether the work is shared out by workpiece cells, so a run without cells gets some."""
+        ...
+
+    def start(self, stock: Stock) -> None:
+        """Cut the stock into the engine's workpiece (reads and checks a stock solid)."""
+        ...
+
+    def process(self, toolpath: Toolpath, default_tool: MillingTool | None = None,
+                start_at: int = 0) -> Iterator[EngagementMap]:
+        """One map per CL segment from CL ``start_at`` on; the CLs before it are taken as done."""
+        ...
+
+    def save_checkpoint(self, folder: Path, next_cl: int) -> None:
+        """Write the state before CL ``next_cl`` into ``folder``, atomically."""
+        ...
+
+    def load_checkpoint(self, folder: Path) -> int | None:
+        """Restore a checkpoint; the next CL index, or None when there is none."""
+        ...
+
+    @property
+    def ipw(self) -> Any:
+        """The in-process workpiece after the last CL handed out (a kernel shape)."""
+        ...
+
+    @property
+    def ipw_volume(self) -> float:
+        ...
+
+    def close(self) -> None:
+        """Release what the engine holds outside this process (workers); the state goes with them."""
         ...
