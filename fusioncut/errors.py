@@ -58,3 +58,27 @@ class GeometryError(FusionCutError):
         self.cl_index = cl_index
         self.reason = message
         super().__init__(f"CL {cl_index}: {message}" if cl_index is not None else message)
+
+
+class BooleanFailure(GeometryError):
+    """A 3D Boolean of the workpiece and a sweep failed, or gave a shape that fails its volume checks,
+    with every fuzzy value and retry tried (the engine reports the CL FAILED and goes on)."""
+
+
+class RegionCutFailure(GeometryError):
+    """A 2D Boolean of a layered cell failed with every fuzzy value (the engine reports the CL FAILED)."""
+
+
+class Degenerate(GeometryError):
+    """The closed-form planar difference cannot decide a piece's side within its tolerance; the
+    caller falls back to the kernel's General Fuse."""
+
+
+class KernelFailure(GeometryError, RuntimeError):
+    """The geometry kernel could not build a shape (a wire that does not close, a fuse or split that
+    reports errors). A ``RuntimeError`` too, so callers that retry on kernel trouble catch it."""
+
+
+class EngineStateError(FusionCutError, RuntimeError):
+    """An engine was asked for a state it does not hold: a checkpoint at another CL than its state,
+    a workpiece whose workers are closed, a batch out of order. A bug, not bad input."""

@@ -26,6 +26,7 @@ from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Face
 
 from fusioncut.engines.brep.occ import area, edges, faces
+from fusioncut.errors import KernelFailure
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine
 
 TWO_PI = 2 * math.pi
@@ -336,7 +337,7 @@ def _section_arcs(face: TopoDS_Face, tip: tuple[float, float, float], z: float) 
     section = BRepAlgoAPI_Section(face, gp_Pln(gp_Pnt(tip[0], tip[1], tip[2] + z), gp_Dir(0, 0, 1)))
     section.Build()
     if not section.IsDone():
-        raise RuntimeError(f"could not slice a contact face at z={z:.4f}")
+        raise KernelFailure(f"could not slice a contact face at z={z:.4f}")
     out = []
     for edge in edges(section.Shape()):
         curve = BRepAdaptor_Curve(edge)

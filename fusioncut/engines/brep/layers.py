@@ -49,15 +49,12 @@ from fusioncut.engines.brep.occ import (
     area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, on_old_boundary,
     pieces, split_pieces, unify, volume,
 )
+from fusioncut.errors import KernelFailure, RegionCutFailure
 
 log = logging.getLogger(__name__)
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
 Z_SNAP = 1e-7  # mm: a tip this close to a layer's boundary stops on it (no layer thinner than this)
 EDGE_TOLERANCE = 1e-7  # mm: OCCT's tolerance of a new edge (Precision::Confusion)
-
-
-class RegionCutFailure(Exception):
-    pass
 
 
 class Layer:
@@ -489,7 +486,7 @@ def outline_faces(region: planar.Region) -> TopoDS_Shape:
         x, y = planar.edge_point(loop[0])
         owners = [k for k, o in enumerate(outers) if planar.winding(list(o), x, y) > 0]
         if not owners:
-            raise RuntimeError("a hole of the region lies in none of its outer loops")
+            raise KernelFailure("a hole of the region lies in none of its outer loops")
         holes[min(owners, key=lambda k: planar.region_area((outers[k],)))].append(loop)
     vertices: dict[tuple[float, float], object] = {}
 
@@ -510,7 +507,7 @@ def outline_faces(region: planar.Region) -> TopoDS_Shape:
                 edge = BRepBuilderAPI_MakeEdge(gp_Circ(gp_Ax2(gp_Pnt(e.cx, e.cy, 0.0), axis), e.r), v0, v1).Edge()
             mk.Add(edge)
         if not mk.IsDone():
-            raise RuntimeError("the region's loop does not close")
+            raise KernelFailure("the region's loop does not close")
         return mk.Wire()
 
     out = []

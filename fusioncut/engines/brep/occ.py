@@ -32,6 +32,8 @@ from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopToo
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 from OCP.collections import List_TopoDS_Shape
 
+from fusioncut.errors import KernelFailure
+
 Vec3 = tuple[float, float, float]
 log = logging.getLogger("fusioncut.engine")
 
@@ -166,14 +168,14 @@ def wire_from_points(segments: Iterable[tuple[str, tuple[Vec3, ...]]]):
             edge = BRepBuilderAPI_MakeEdge(arc).Edge()
         mk.Add(edge)
     if not mk.IsDone():
-        raise RuntimeError("could not close the profile wire")
+        raise KernelFailure("could not close the profile wire")
     return mk.Wire()
 
 
 def planar_face(wire) -> TopoDS_Face:
     mk = BRepBuilderAPI_MakeFace(wire, True)
     if not mk.IsDone():
-        raise RuntimeError("could not make a planar face from the profile")
+        raise KernelFailure("could not make a planar face from the profile")
     return mk.Face()
 
 
@@ -285,7 +287,7 @@ def fuse_all(shapes: list[TopoDS_Shape], glue: bool = False, fuzzy: float = 0.0)
         op.SetFuzzyValue(fuzzy)
     op.Build()
     if not op.IsDone():
-        raise RuntimeError("fuse of the sweep pieces failed")
+        raise KernelFailure("fuse of the sweep pieces failed")
     return unify(op.Shape())
 
 
@@ -453,7 +455,7 @@ def _in_box(solid: TopoDS_Shape, lo: Vec3, hi: Vec3) -> TopoDS_Shape | None:
 
     op = BRepAlgoAPI_Common(solid, BRepPrimAPI_MakeBox(pnt(lo), pnt(hi)).Shape())
     if not op.IsDone():
-        raise RuntimeError("splitting the workpiece into cells failed")
+        raise KernelFailure("splitting the workpiece into cells failed")
     piece = op.Shape()
     return unify(piece) if solids(piece) else None
 

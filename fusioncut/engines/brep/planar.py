@@ -24,13 +24,11 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+from fusioncut.errors import Degenerate
+
 SNAP = 1e-7  # mm: points closer than this are one vertex; pieces shorter than this are dropped
 EPS = 1e-9  # mm: curves closer than this coincide (tangent, or overlapping)
 TWO_PI = 2.0 * math.pi
-
-
-class Degenerate(Exception):
-    """The configuration is too close to a degenerate one to be decided here."""
 
 
 class Line(NamedTuple):

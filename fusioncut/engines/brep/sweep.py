@@ -55,7 +55,7 @@ from fusioncut.engines.brep.occ import (
     faces, fuse_all, moved_copy, placement, planar_face, pnt, solids, unify, volume, wire_from_points,
 )
 from fusioncut.engines.ceiling import tool_radii
-from fusioncut.errors import SourceLocation
+from fusioncut.errors import KernelFailure, SourceLocation
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProfile
 
@@ -512,7 +512,7 @@ def sampled_sweep(tool: MillingTool, move: Move, seam: float = 0.0, spacing: flo
         shape = fuse_all([placed_tool(tool, p, seam) for p in points], fuzzy=fuzzy)
         if len(solids(shape)) == 1 and least <= volume(shape) <= most:
             return shape
-    raise RuntimeError(f"the union of {n + 1} tool copies along the move is not one solid of a sweep's volume")
+    raise KernelFailure(f"the union of {n + 1} tool copies along the move is not one solid of a sweep's volume")
 
 
 _SNAP = 1e-4  # mm
