@@ -230,27 +230,121 @@ def read_slot_tests_csv(path: str | Path) -> SlotTests:
 
 
 COEFFICIENT_KEYS = ("ktc", "krc", "kac", "kte", "kre", "kae")
+COEFFICIENT_UNITS = {"ktc": "N/mm²", "krc": "N/mm²", "kac": "N/mm²", "kte": "N/mm", "kre": "N/mm", "kae": "N/mm"}
+
+# plausible ranges of published linear edge-force coefficients (aluminium alloys to nickel alloys with
+# carbide tools): a value outside is warned about, not refused (a calibration may be right and unusual)
+KTC_RANGE = (150.0, 6000.0)     # N/mm²
+KRC_KTC_RANGE = (0.05, 1.2)     # Krc / Ktc
+KAC_KTC_MAX = 1.0               # |Kac| / Ktc
+EDGE_KTC_MAX_MM = 0.5           # Kte / Ktc, Kre / Ktc (mm): edge force per length against a 0.5 mm chip
+R_SQUARED_MIN = 0.95            # mean Fx, Fy against the feed per tooth
+
+
+def plausibility_warnings(coeffs: CuttingCoefficients, fit: CalibrationFit | None = None) -> list[str]:
+    """What is implausible about a coefficient set (empty: nothing): Ktc outside :data:`KTC_RANGE`,
+    Krc / Ktc outside :data:`KRC_KTC_RANGE`, |Kac| above :data:`KAC_KTC_MAX` Ktc, negative or large edge
+    coefficients, and with a fit an R² of Fx or Fy under :data:`R_SQUARED_MIN`. ``ktc`` and ``krc``
+    must be > 0 (:func:`check_signs`)."""
+    out = []
+    ktc, krc = coeffs.ktc, coeffs.krc
+    if not KTC_RANGE[0] <= ktc <= KTC_RANGE[1]:
+        out.append(f"Ktc {ktc:.4g} N/mm² is outside {KTC_RANGE[0]:g}..{KTC_RANGE[1]:g} N/mm² (published sets, "
+                   "aluminium to nickel alloys): check the axial depth, the flute count and the force units")
+    if ktc > 0 and not KRC_KTC_RANGE[0] <= krc / ktc <= KRC_KTC_RANGE[1]:
+        out.append(f"Krc / Ktc = {krc / ktc:.3g} is outside {KRC_KTC_RANGE[0]:g}..{KRC_KTC_RANGE[1]:g}: check "
+                   "that fx_N is along the feed and fy_N across it")
+    if ktc > 0 and abs(coeffs.kac) > KAC_KTC_MAX * ktc:
+        out.append(f"|Kac| = {abs(coeffs.kac):.4g} N/mm² exceeds Ktc: check the sign and units of fz_N")
+    for key in ("kte", "kre"):
+        v = getattr(coeffs, key)
+        if v < 0:
+            out.append(f"{key.capitalize()} = {v:.4g} N/mm is negative (an edge force that pulls the tool into "
+                       "the cut): the lines' intercepts are off, check the lowest feeds or the force offsets")
+        elif ktc > 0 and v > EDGE_KTC_MAX_MM * ktc:
+            out.append(f"{key.capitalize()} = {v:.4g} N/mm is more than {EDGE_KTC_MAX_MM:g} mm x Ktc: check the "
+                       "zero of the dynamometer (a force offset lands in the edge coefficients)")
+    if fit is not None:
+        for axis, line in (("Fx", fit.x), ("Fy", fit.y)):
+            if math.isfinite(line.r_squared) and line.r_squared < R_SQUARED_MIN:
+                out.append(f"mean {axis} is not linear in the feed per tooth: R² {line.r_squared:.3f} < "
+                           f"{R_SQUARED_MIN:g} (the linear edge-force model may not hold, or the tests scatter)")
+    return out
+
+
+def check_signs(coeffs: CuttingCoefficients, where: str | Path | SourceLocation | None = None) -> None:
+    """Ktc and Krc must be > 0: mean Fy of a slot grows and mean Fx falls with the feed (forces on the
+    tool, M3, feed frame). Otherwise the forces are most likely the workpiece's (a table dynamometer:
+    negate them) or x and y are swapped; raises :class:`InputError` naming ``where``."""
+    if coeffs.ktc <= 0:
+        raise InputError(f"Ktc = {coeffs.ktc:.4g} N/mm² is not > 0: mean fy_N must grow with the feed (forces on "
+                         "the tool, y 90 deg counter-clockwise from the feed); a table dynamometer measures the "
+                         "reaction: negate its readings", where)
+    if coeffs.krc <= 0:
+        raise InputError(f"Krc = {coeffs.krc:.4g} N/mm² is not > 0: mean fx_N must fall with the feed (forces on "
+                         "the tool, x along the feed); check the sign of fx_N and that x is the feed direction",
+                         where)
+
+
+def coefficients_document(coeffs: CuttingCoefficients, fit: CalibrationFit | None = None, data: str = "",
+                          warnings: Sequence[str] = ()) -> dict:
+    """The JSON object :func:`read_coefficients_json` reads: the six coefficients, ``units``, ``name``,
+    ``source`` and, from a calibration, ``fit`` (R² and rms residual per axis, standard errors, tests,
+    axial depth, flutes, the data file) and its ``warnings``."""
+    doc: dict = {k: float(getattr(coeffs, k)) for k in COEFFICIENT_KEYS}
+    doc.update(units=dict(COEFFICIENT_UNITS), name=coeffs.name, source=coeffs.source)
+    if fit is not None:
+        doc["fit"] = {
+            "data": data,
+            "tests": fit.tests,
+            "axial_depth_mm": fit.axial_depth,
+            "flutes": fit.flutes,
+            "r_squared": {a: _json_number(getattr(fit, a).r_squared) for a in ("x", "y", "z")},
+            "rms_residual_N": {a: _json_number(getattr(fit, a).rms_residual) for a in ("x", "y", "z")},
+            "stderr": {k: _json_number(v) for k, v in fit.stderr.items()},
+        }
+    if warnings:
+        doc["warnings"] = list(warnings)
+    return doc
+
+
+def _json_number(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
+def write_coefficients_json(path: str | Path, coeffs: CuttingCoefficients, fit: CalibrationFit | None = None,
+                            data: str = "", warnings: Sequence[str] = ()) -> None:
+    import json
+
+    Path(path).write_text(json.dumps(coefficients_document(coeffs, fit, data, warnings), indent=2,
+                                     ensure_ascii=False) + "\n", encoding="utf-8")
 
 
 def read_coefficients_json(path: str | Path) -> CuttingCoefficients:
     """Cutting coefficients from a JSON object with the six keys of
     :meth:`CuttingCoefficients.as_dict` (``ktc, krc, kac`` N/mm², ``kte, kre, kae`` N/mm; axial sign
-    convention of :mod:`fusioncut.analysis.forces`) and optional ``name`` and ``source`` strings.
-    Errors name the file (and the line of bad JSON)."""
+    convention of :mod:`fusioncut.analysis.forces`), optional ``name`` and ``source`` strings and what
+    :func:`coefficients_document` adds (``units``, which must be those units, ``fit``, ``warnings``).
+    Ktc and Krc must be > 0 (:func:`check_signs`). Errors name the file (and the line of bad JSON)."""
     path = Path(path)
     data = read_json(path)
     if not isinstance(data, dict):
         raise InputError(f"expected an object with the keys {', '.join(COEFFICIENT_KEYS)}", path)
     missing = [k for k in COEFFICIENT_KEYS if k not in data]
-    unknown = sorted(set(data) - set(COEFFICIENT_KEYS) - {"name", "source"})
+    unknown = sorted(set(data) - set(COEFFICIENT_KEYS) - {"name", "source", "units", "fit", "warnings"})
     if missing or unknown:
         raise InputError(f"missing key(s) {missing}, unknown key(s) {unknown}; expected "
-                         f"{', '.join(COEFFICIENT_KEYS)} (and optional name, source)", path)
+                         f"{', '.join(COEFFICIENT_KEYS)} (and optional name, source, units, fit, warnings)", path)
     bad = [k for k in COEFFICIENT_KEYS if isinstance(data[k], bool) or not isinstance(data[k], (int, float))]
     if bad:
         raise InputError(f"coefficient(s) {', '.join(bad)} must be numbers", path)
+    units = data.get("units", COEFFICIENT_UNITS)
+    if not isinstance(units, dict) or any(units.get(k, COEFFICIENT_UNITS[k]) != u for k, u in COEFFICIENT_UNITS.items()):
+        raise InputError(f"'units' must be {COEFFICIENT_UNITS} (convert the values), got {units!r}", path)
     try:
-        return CuttingCoefficients(**{k: float(data[k]) for k in COEFFICIENT_KEYS},
-                                   name=str(data.get("name", path.stem)), source=str(data.get("source", str(path))))
+        coeffs = CuttingCoefficients(**{k: float(data[k]) for k in COEFFICIENT_KEYS},
+                                     name=str(data.get("name") or path.stem), source=str(data.get("source") or path))
     except InputError as exc:
         raise InputError(exc.reason, path) from None
+    check_signs(coeffs, path)
+    return coeffs

@@ -1,6 +1,8 @@
 """Cutting-force commands.
 
-* ``fusioncut calibrate CSV``: linear edge-force coefficients from slot tests.
+* ``fusioncut calibrate CSV``: linear edge-force coefficients from slot tests, written to a coefficients
+  file (JSON: :func:`fusioncut.analysis.calibrate.coefficients_document`) that ``forces``, ``advise``
+  and ``stability`` take with ``--coefficients`` instead of ``--material``.
 * ``fusioncut forces RESULTS_DIR``: per-CL forces of a run (``forces.csv``, ``forces.parquet`` and
   ``forces.png`` in the results directory).
 * ``fusioncut advise RESULTS_DIR --program FILE --max-force N --out NEW``: feed advice, the program
@@ -37,17 +39,28 @@ def calibrate(
     csv_file: Path = typer.Argument(..., metavar="CSV", help="Slot tests: columns c_mm, fx_N, fy_N, fz_N."),
     axial_depth: float = typer.Option(..., "--axial-depth", help="Axial depth of the slots (mm)."),
     flutes: int = typer.Option(..., "--flutes", help="Number of flutes of the test tool."),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Coefficients file to write (JSON; default: "
+                                                                 "CSV's name + _coefficients.json beside it)."),
+    name: Optional[str] = typer.Option(None, "--name", help="Name of the coefficient set (default: from CSV)."),
 ) -> None:
-    """Fit the linear edge-force coefficients to mean forces of full-slot cuts.
+    """Fit the linear edge-force coefficients to mean forces of full-slot cuts and write them to a
+    coefficients file that forces, advise and stability take with --coefficients.
 
     Each CSV row is one slot cut at feed per tooth c_mm with the mean force on the tool over whole
     revolutions (fx_N along the feed, fy_N 90 deg counter-clockwise from it, fz_N up the axis; M3
-    spindle). A table dynamometer measures the reaction: negate its readings.
+    spindle). A table dynamometer measures the reaction: negate its readings. Ktc or Krc not > 0 is
+    refused (a sign convention broken); implausible values and a poor fit (R²) are warned about and
+    recorded in the file.
     """
-    from fusioncut.analysis.calibrate import calibrate_from_slot_tests, read_slot_tests_csv
+    from fusioncut.analysis.calibrate import (COEFFICIENT_UNITS, calibrate_from_slot_tests, check_signs,
+                                              plausibility_warnings, read_slot_tests_csv, write_coefficients_json)
 
     tests = read_slot_tests_csv(csv_file)
-    coeffs, fit = calibrate_from_slot_tests(tests.c, tests.fx, tests.fy, tests.fz, axial_depth, flutes)
+    coeffs, fit = calibrate_from_slot_tests(tests.c, tests.fx, tests.fy, tests.fz, axial_depth, flutes,
+                                            name=name or f"calibrated from {csv_file.name}")
+    coeffs = dataclasses.replace(coeffs, source=f"{coeffs.source}; data {csv_file}")
+    check_signs(coeffs, csv_file)
+    warnings = plausibility_warnings(coeffs, fit)
 
     table = Table(title=f"Cutting coefficients from {fit.tests} slot tests ({escape(csv_file.name)}, "
                   f"a = {axial_depth:g} mm, {flutes} flutes)")
@@ -56,8 +69,7 @@ def calibrate(
     table.add_column("std. error", justify="right")
     table.add_column("unit")
     for key, value in coeffs.as_dict().items():
-        unit = "N/mm²" if key.endswith("c") else "N/mm"
-        table.add_row(key.capitalize(), _fmt(value, 5), _fmt(fit.stderr[key], 3), unit)
+        table.add_row(key.capitalize(), _fmt(value, 5), _fmt(fit.stderr[key], 3), COEFFICIENT_UNITS[key])
     console.print(table)
 
     lines = Table(title="Mean force = slope * c + intercept")
@@ -69,6 +81,11 @@ def calibrate(
     console.print(lines)
     if fit.tests < 3:
         console.print("[yellow]note:[/] two tests fit the lines exactly; no error estimate is possible.")
+    for w in warnings:
+        console.print(f"[yellow]warning:[/] {escape(str(csv_file))}: {escape(w)}", highlight=False)
+    out = out or csv_file.with_name(csv_file.stem + "_coefficients.json")
+    write_coefficients_json(out, coeffs, fit, str(csv_file), warnings)
+    console.print(escape(f"wrote {out}"), highlight=False)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -100,15 +117,35 @@ def _tool_from_metadata(label: str, meta: dict[str, Any]) -> Any:
     return cls(diameter=float(d), flute_length=float(fl))
 
 
-def _setup(results_dir: Path, program: Optional[Path], material: str, rpm: Optional[float], flutes: Optional[int],
-           helix: Optional[float], slice_height: Optional[float]) -> _Setup:
+DEFAULT_MATERIAL = "al7075-t6"
+
+
+def _coefficients(material: Optional[str], coefficients_file: Optional[Path]) -> Any:
+    """The cutting coefficients of ``--material`` or ``--coefficients`` (not both; neither:
+    :data:`DEFAULT_MATERIAL`). A file's implausible values are warned about, naming it."""
+    from fusioncut.analysis.calibrate import plausibility_warnings, read_coefficients_json
+    from fusioncut.analysis.materials import get_coefficients
+    from fusioncut.errors import InputError
+
+    if coefficients_file is None:
+        return get_coefficients(material or DEFAULT_MATERIAL)
+    if material is not None:
+        raise InputError(f"give --material or --coefficients, not both (--material {material}, --coefficients "
+                         f"{coefficients_file})")
+    coefficients = read_coefficients_json(coefficients_file)
+    for w in plausibility_warnings(coefficients):
+        console.print(f"[yellow]warning:[/] {escape(str(coefficients_file))}: {escape(w)}", highlight=False)
+    return coefficients
+
+
+def _setup(results_dir: Path, program: Optional[Path], coefficients: Any, rpm: Optional[float],
+           flutes: Optional[int], helix: Optional[float], slice_height: Optional[float]) -> _Setup:
+    """``coefficients``: from :func:`_coefficients`."""
     from fusioncut.analysis.feed import same_source_file
     from fusioncut.analysis.forces import engagement_maps_from_results, infer_slice_height
-    from fusioncut.analysis.materials import get_coefficients
     from fusioncut.errors import InputError
     from fusioncut.io.results import load_results
 
-    coefficients = get_coefficients(material)
     results = load_results(results_dir)
     if not len(results.cl):
         raise InputError("the results hold no CL", results_dir)
@@ -149,7 +186,9 @@ def _setup(results_dir: Path, program: Optional[Path], material: str, rpm: Optio
     return _Setup(results, maps, groups, tools, rpms, coefficients, dz, tp)
 
 
-_MATERIAL_HELP = "Work material / tool pair of the cutting coefficients (see fusioncut.analysis.materials)."
+_MATERIAL_HELP = ("Work material / tool pair of the cutting coefficients (see fusioncut.analysis.materials; "
+                  f"default {DEFAULT_MATERIAL}).")
+_COEFFICIENTS_HELP = "Cutting coefficients file (JSON, as fusioncut calibrate writes it); not with --material."
 
 
 @friendly_errors
@@ -157,7 +196,8 @@ def forces(
     results_dir: Path = typer.Argument(..., help="Results directory of a run."),
     program: Optional[Path] = typer.Option(None, "--program", help="The program the results came from: spindle "
                                                                     "speeds and tool geometry."),
-    material: str = typer.Option("al7075-t6", "--material", help=_MATERIAL_HELP),
+    material: Optional[str] = typer.Option(None, "--material", help=_MATERIAL_HELP),
+    coefficients: Optional[Path] = typer.Option(None, "--coefficients", help=_COEFFICIENTS_HELP),
     rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min) for every CL."),
     flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
     helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
@@ -177,7 +217,7 @@ def forces(
 
     from fusioncut.analysis.forces import FORCE_COLUMNS, forces_table
 
-    s = _setup(results_dir, program, material, rpm, flutes, helix, slice_height)
+    s = _setup(results_dir, program, _coefficients(material, coefficients), rpm, flutes, helix, slice_height)
     parts = []
     for label, idx in s.groups.items():
         part = forces_table([s.maps[i] for i in idx], s.tools[label], s.coefficients, [s.rpms[i] for i in idx],
@@ -186,7 +226,8 @@ def forces(
         parts.append(part)
     table = pd.concat(parts).sort_index()
     _write_table(table, results_dir / "forces", {c: (u, d) for c, u, d in FORCE_COLUMNS},
-                 {"material": material, "coefficients": s.coefficients.as_dict(), "slice_height_mm": s.dz,
+                 {"coefficients_name": s.coefficients.name, "coefficients": s.coefficients.as_dict(),
+                  "coefficients_source": s.coefficients.source, "slice_height_mm": s.dz,
                   "tools": {k: _tool_info(t) for k, t in s.tools.items()}})
     wrote = ["forces.csv", "forces.parquet"]
     if plot:
@@ -195,7 +236,7 @@ def forces(
         plot_forces(table, out=results_dir / "forces.png")
         wrote.append("forces.png")
     known = table[table["resultant_peak_N"].notna()]
-    summary = Table(title=f"Cutting forces ({escape(s.coefficients.name or material)}; slice height {s.dz:g} mm)")
+    summary = Table(title=f"Cutting forces ({escape(s.coefficients.name)}; slice height {s.dz:g} mm)")
     for col in ("CLs with forces", "max |F| peak N", "mean |F| mean N", "max torque N*m", "max power W",
                 "max chip mm"):
         summary.add_column(col, justify="right")
@@ -252,7 +293,8 @@ def advise(
     quantum: float = typer.Option(0.05, "--quantum", help="Feed step, fraction of the programmed feed."),
     min_run: Optional[float] = typer.Option(None, "--min-run", help="Shortest stretch (mm) a raised feed must "
                                                                     "last (default: tool diameter)."),
-    material: str = typer.Option("al7075-t6", "--material", help=_MATERIAL_HELP),
+    material: Optional[str] = typer.Option(None, "--material", help=_MATERIAL_HELP),
+    coefficients: Optional[Path] = typer.Option(None, "--coefficients", help=_COEFFICIENTS_HELP),
     rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min; default: the program's S)."),
     flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
     helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
@@ -277,7 +319,7 @@ def advise(
         raise ValueError(f"{plot}: unsupported plot format {plot.suffix!r} (use .png or .svg)")
     limit = FeedLimit(max_force=max_force, max_chip_thickness=max_chip, max_power=max_power, max_mrr=max_mrr,
                       min_feed=min_feed, max_feed=max_feed, air_feed=air_feed, raise_ramps=raise_ramps)
-    s = _setup(results_dir, program, material, rpm, flutes, helix, slice_height)
+    s = _setup(results_dir, program, _coefficients(material, coefficients), rpm, flutes, helix, slice_height)
     mine = [i for i, m in enumerate(s.maps) if same_source_file(str(m.source.file), str(program))]
     if not mine:
         raise InputError(f"no CL of the results comes from {program.name}", results_dir)
@@ -311,7 +353,8 @@ def advise(
     result = rewrite_gcode_file(program, advice.line_feeds(), out)
     _write_table(table, out.with_name(out.stem + "_advice"), {c: (u, d) for c, u, d in FEED_COLUMNS},
                  {"program": str(program), "limit": dataclasses.asdict(advice.limit), "quantum": quantum,
-                  "min_run_length_mm": advice.min_run_length, "material": material})
+                  "min_run_length_mm": advice.min_run_length, "coefficients_name": s.coefficients.name,
+                  "coefficients": s.coefficients.as_dict()})
     plot_feed_advice(advice, out=plot)
 
     t = advice.table

@@ -21,7 +21,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
-from fusioncut.cli.forces import _MATERIAL_HELP, _setup, _tool_info, _write_table
+from fusioncut.cli.forces import _COEFFICIENTS_HELP, _MATERIAL_HELP, _coefficients, _setup, _tool_info, _write_table
 
 console = Console()
 
@@ -33,9 +33,8 @@ def stability(
                                                         "FILE for every tool, TOOL=FILE for one (its label or T "
                                                         "number); repeatable."),
     out: Path = typer.Option(..., "--out", "-o", help="Directory for stability.csv/.parquet and the plots."),
-    material: str = typer.Option("al7075-t6", "--material", help=_MATERIAL_HELP),
-    coefficients: Optional[Path] = typer.Option(None, "--coefficients", help="Cutting coefficients file (JSON; "
-                                                                             "overrides --material)."),
+    material: Optional[str] = typer.Option(None, "--material", help=_MATERIAL_HELP),
+    coefficients: Optional[Path] = typer.Option(None, "--coefficients", help=_COEFFICIENTS_HELP),
     program: Optional[Path] = typer.Option(None, "--program", help="The program the results came from: spindle "
                                                                     "speeds and tool geometry."),
     rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min) for every CL."),
@@ -78,11 +77,7 @@ def stability(
         if not (0 < rpm_min < rpm_max and math.isfinite(rpm_max)):
             raise InputError(f"need 0 < --rpm-min < --rpm-max, got {rpm_min:g}, {rpm_max:g}")
         rpm_range = (rpm_min, rpm_max)
-    s = _setup(results_dir, program, material, rpm, flutes, helix, slice_height)
-    if coefficients is not None:
-        from fusioncut.analysis.calibrate import read_coefficients_json
-
-        s.coefficients = read_coefficients_json(coefficients)
+    s = _setup(results_dir, program, _coefficients(material, coefficients), rpm, flutes, helix, slice_height)
     dynamics = _tool_dynamics(modes, s.tools, n_modes)
     parts = []
     for label, idx in s.groups.items():
@@ -100,7 +95,7 @@ def stability(
     out.mkdir(parents=True, exist_ok=True)
     _write_table(table, out / "stability", {c: (u, d) for c, u, d in STABILITY_COLUMNS + DEFLECTION_COLUMNS},
                  {"modes": {k: d.as_dict() for k, d in dynamics.items()}, "coefficients": s.coefficients.as_dict(),
-                  "coefficients_name": s.coefficients.name or material, "slice_height_mm": s.dz, "sd": sd,
+                  "coefficients_name": s.coefficients.name, "slice_height_mm": s.dz, "sd": sd,
                   "tools": {k: _tool_info(t) for k, t in s.tools.items()}})
     wrote = ["stability.csv", "stability.parquet"]
     known = table[table["margin"].notna()]
@@ -113,7 +108,7 @@ def stability(
             _plot_deflection(table, out / "deflection.png")
             wrote.append("deflection.png")
     chatter = known[known["margin"] >= 1.0]
-    console.print(f"stability of {len(known)} CL(s) ({escape(s.coefficients.name or material)}, Ktc "
+    console.print(f"stability of {len(known)} CL(s) ({escape(s.coefficients.name)}, Ktc "
                   f"{s.coefficients.ktc:g} N/mm²): {len(chatter)} with margin >= 1 (chatter predicted), largest "
                   f"margin {known['margin'].max() if len(known) else math.nan:.3g}", highlight=False)
     no_sd = int((known["a_lim_sd_mm"].isna() & (known["status"] == "engaged")).sum()) if sd else 0
