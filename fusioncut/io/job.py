@@ -6,17 +6,21 @@ The JSON Schema is ``Job.model_json_schema()`` (``fusioncut schema`` prints it).
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
-from dataclasses import replace
+from enum import Enum
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, get_type_hints
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
-from fusioncut.errors import InputError
+from fusioncut.engines.base import EngineOptions
+
+from fusioncut.errors import InputError, ToolDefinitionError
 from fusioncut.io.json_input import read_json
-from fusioncut.model.moves import Toolpath
-from fusioncut.model.stock import BoxStock, CylinderStock, Stock
+from fusioncut.io.readers import read_toolpath  # noqa: F401 - the runner reads toolpaths from here
+from fusioncut.model.stock import BoxStock, CylinderStock, SolidStock, Stock
 from fusioncut.model.tools import (AptCutter, AptParameters, BallEndMill, BullNoseEndMill, ChamferMill, Drill,
                                    FlatEndMill, MillingTool, SpindleDirection, TaperedEndMill)
 
@@ -53,6 +57,17 @@ class StockSpec(_Strict):
         if self.top is not None and self.kind != "infer":
             raise ValueError(f"'top' applies to inferred stock only; a {self.kind} stock states its own top")
         return self
+
+
+def stock_spec(stock: Stock) -> StockSpec:
+    """The job's stock entry of a model stock (a box, a cylinder or a STEP/BREP file)."""
+    if isinstance(stock, BoxStock):
+        return StockSpec(kind="box", min=stock.minimum, max=stock.maximum)
+    if isinstance(stock, CylinderStock):
+        return StockSpec(kind="cylinder", base_center=stock.base_center, radius=stock.radius, height=stock.height)
+    if isinstance(stock, SolidStock):
+        return StockSpec(kind="file", path=str(stock.path))
+    raise InputError(f"a job cannot state a stock of type {type(stock).__name__}")
 
 
 class LibraryRef(_Strict):
@@ -112,6 +127,22 @@ class ToolSpec(_Strict):
                 raise ValueError(f"a tool needs {', '.join(missing)} (or 'library' to pick one from the tool library)")
         return self
 
+    @classmethod
+    def of(cls, tool: MillingTool, number: int | None = None) -> ToolSpec:
+        """The job tool of a model tool, numbered ``number`` (default: the tool's own number);
+        ``ToolSpec.of(t).build() == t`` but for the tool's ``source``. A tool whose family a job
+        cannot state is a :class:`ToolDefinitionError`."""
+        if tool.kind not in _TOOL_KINDS:
+            raise ToolDefinitionError(f"tool {tool.label}: a job cannot state a {tool.kind!r} tool")
+        number = tool.number if number is None else number
+        if number is None:
+            raise ToolDefinitionError(f"tool {tool.label}: a job tool needs its T number")
+        data = {k: getattr(tool, k) for k in _GEOMETRY if k not in ("kind", "apt") and hasattr(tool, k)}
+        data.update(number=number, kind=tool.kind, spindle=tool.spindle.value)
+        if isinstance(tool, AptCutter):
+            data["apt"] = dataclasses.astuple(tool.apt_parameters)
+        return cls.model_validate(data)
+
     def build(self, library: ToolLibrary | None = None) -> MillingTool:
         """The model tool; a ``library`` pick needs the job's tool library (:class:`InputError` without)."""
         if self.library is not None:
@@ -120,54 +151,89 @@ class ToolSpec(_Strict):
                                  "'tool_library'")
             tool = library.pick(name=self.library.name, id=self.library.id)
             return replace(tool, number=self.number)
+        if self.kind == "apt" and self.apt is None:
+            raise InputError(f"tool T{self.number}: kind 'apt' needs the 7 parameters in 'apt'")
+        cls, own = _TOOL_KINDS[self.kind]  # type: ignore[index]
         common = dict(diameter=self.diameter, flute_length=self.flute_length, flutes=self.flutes,
                       helix_angle=self.helix_angle, spindle=SpindleDirection(self.spindle),
                       shank_diameter=self.shank_diameter, overall_length=self.overall_length,
                       neck_diameter=self.neck_diameter, shoulder_length=self.shoulder_length,
                       number=self.number, name=self.name)
-        if self.kind == "flat":
-            return FlatEndMill(**common)
-        if self.kind == "ball":
-            return BallEndMill(**common)
-        if self.kind == "bullnose":
-            return BullNoseEndMill(**common, corner_radius=self.corner_radius)
-        if self.kind == "tapered":
-            return TaperedEndMill(**common, taper_angle=self.taper_angle)
-        if self.kind == "chamfer":
-            return ChamferMill(**common, tip_diameter=self.tip_diameter, taper_angle=self.taper_angle)
-        if self.kind == "drill":
-            return Drill(**common, point_angle=self.point_angle)
-        if self.apt is None:
-            raise InputError(f"tool T{self.number}: kind 'apt' needs the 7 parameters in 'apt'")
-        return AptCutter(**common, apt_parameters=AptParameters(*self.apt))
+        return cls(**common, **own(self))
 
 
-class Options(_Strict):
-    """Engine options (see :class:`fusioncut.engines.base.EngineOptions`; lengths mm) and run options.
+# a job tool's kind -> the model class and the kind's own fields
+_TOOL_KINDS: dict[str, tuple[type[MillingTool], Any]] = {
+    "flat": (FlatEndMill, lambda t: {}),
+    "ball": (BallEndMill, lambda t: {}),
+    "bullnose": (BullNoseEndMill, lambda t: {"corner_radius": t.corner_radius}),
+    "tapered": (TaperedEndMill, lambda t: {"taper_angle": t.taper_angle}),
+    "chamfer": (ChamferMill, lambda t: {"tip_diameter": t.tip_diameter, "taper_angle": t.taper_angle}),
+    "drill": (Drill, lambda t: {"point_angle": t.point_angle}),
+    "apt": (AptCutter, lambda t: {"apt_parameters": AptParameters(*t.apt)}),
+}
 
-    Run options do not change the results and are left out of the job hash: ``checkpoint_every``
+
+# --------------------------------------------------------------------------------------------------
+# options: the engine options of a job are generated from the fields of EngineOptions (their types,
+# defaults and help), so the job file, `fusioncut schema`, the service's form and the CLI's flags
+# state one set of defaults and docs.
+
+# EngineOptions fields that are not job options: the failures folder the runner sets, and the knobs
+# that drive the kernel without changing what is computed (or only by the Booleans' tolerance).
+ENGINE_ONLY = frozenset({"failure_dir", "merge_growth", "fuzzy", "fuzzy_retries", "kernel_threads",
+                         "ceiling_pixel", "layers", "max_layers"})
+# Bounds a job's value must keep (mm unless stated); EngineOptions' LOWER_BOUNDS come on top when the
+# engine options are made. Every number must also be finite.
+OPTION_BOUNDS: dict[str, dict[str, float]] = {
+    "slice_height": {"gt": 0}, "max_segment_length": {"gt": 0}, "chord_tolerance": {"gt": 0},
+    "ramp_step": {"gt": 0}, "cell_size": {"gt": 0}, "min_chip_thickness": {"ge": 0}, "max_layers": {"ge": 1},
+    "merge_growth": {"gt": 0}, "fuzzy": {"ge": 0}, "ceiling_pixel": {"gt": 0},
+}
+# the values a job may ask for where the option's type holds more (SweepMethod.STEP is only reported)
+OPTION_TYPES: dict[str, Any] = {"sweep": Literal["exact", "sampled"]}
+
+
+@dataclass(frozen=True)
+class OptionField:
+    """One engine option as a job states it: ``name``, its Python ``type`` (the field's annotation, or
+    :data:`OPTION_TYPES`'),
+    ``default`` (EngineOptions') and ``help`` (the field's ``metadata["help"]``, "" when it has none)."""
+
+    name: str
+    type: Any
+    default: Any
+    help: str
+
+
+def engine_option_fields() -> tuple[OptionField, ...]:
+    """The engine options a job may set, in :class:`EngineOptions` order (see :data:`ENGINE_ONLY`)."""
+    hints = get_type_hints(EngineOptions)
+    return tuple(OptionField(f.name, OPTION_TYPES.get(f.name, hints[f.name]), f.default, str(f.metadata.get("help", "")))
+                 for f in dataclasses.fields(EngineOptions) if f.name not in ENGINE_ONLY)
+
+
+def _engine_option(f: OptionField) -> tuple[Any, Any]:
+    default = f.default.value if isinstance(f.default, Enum) else f.default
+    return f.type, Field(default, description=f.help or None, allow_inf_nan=False, **OPTION_BOUNDS.get(f.name, {}))
+
+
+class _RunOptions(_Strict):
+    """Run options do not change the results and are left out of the job hash: ``checkpoint_every``
     (save a resumable checkpoint every that many CLs; 0: only when the run ends or is interrupted),
     ``snapshot_cls`` (write the workpiece as ``ipw_cl<N>.step`` after each of these CL indices),
     ``workers`` (split the workpiece's cells among that many Dask worker processes of an embedded
     cluster) and ``scheduler`` (the address of a running Dask scheduler whose workers do it instead).
-    ``cell_size`` (mm, default 20) keeps the workpiece as square columns, ``null`` keeps it whole; a
-    parallel run always uses cells (20 mm when the job asks for none). Its results equal the
+    A parallel run always uses cells (20 mm when the job asks for none); its results equal the
     single-process run's to 0.001° and 1e-6 of the volumes, and a checkpoint of either resumes in
-    the other. ``min_chip_thickness`` (mm, default 0.001, 0: off): a slice whose removed width
-    across the path is thinner only rubs (no engagement, not in ap).
-    """
+    the other."""
 
-    slice_height: float = Field(1.0, gt=0)
-    max_segment_length: float | None = Field(None, gt=0)
-    chord_tolerance: float = Field(1e-3, gt=0)
-    ramp_step: float = Field(5e-2, gt=0)
-    sweep: Literal["exact", "sampled"] = "exact"
-    cell_size: float | None = Field(20.0, gt=0)
-    min_chip_thickness: float = Field(1e-3, ge=0, allow_inf_nan=False)
-    checkpoint_every: int = Field(200, ge=0)
-    snapshot_cls: list[Annotated[int, Field(ge=0)]] = []
-    workers: int = Field(1, ge=1)
-    scheduler: str | None = None
+    checkpoint_every: int = Field(200, ge=0, description="save a resumable checkpoint every that many CLs "
+                                  "(0: only when the run ends or is interrupted)")
+    snapshot_cls: list[Annotated[int, Field(ge=0)]] = Field(
+        [], description="write the workpiece as ipw_cl<N>.step after each of these CL indices")
+    workers: int = Field(1, ge=1, description="Dask worker processes of an embedded cluster sharing the cells")
+    scheduler: str | None = Field(None, description="address of a running Dask scheduler whose workers run it")
 
     @field_validator("scheduler")
     @classmethod
@@ -177,9 +243,16 @@ class Options(_Strict):
         return value.strip() if value is not None else None
 
 
+Options = create_model(  # type: ignore[call-overload]
+    "Options", __base__=_RunOptions, __module__=__name__,
+    __doc__="Engine options (the fields of :class:`fusioncut.engines.base.EngineOptions` but "
+            ":data:`ENGINE_ONLY`, with their defaults and help; lengths mm) and run options.\n\n"
+            + (_RunOptions.__doc__ or ""),
+    **{f.name: _engine_option(f) for f in engine_option_fields()})
+
 # Options that steer the run but not its results: excluded from the engine options and the job hash,
 # so changing them neither breaks a resume nor pretends the results differ.
-RUN_OPTIONS = frozenset({"checkpoint_every", "snapshot_cls", "workers", "scheduler"})
+RUN_OPTIONS = frozenset(_RunOptions.model_fields)
 
 
 class Job(_Strict):
@@ -263,23 +336,3 @@ def job_hash(job: Job, base: Path) -> str:
         if f.is_file():
             h.update(f.read_bytes())
     return h.hexdigest()[:16]
-
-
-def read_toolpath(path: Path, tools: dict[int, MillingTool] | None = None, strict: bool = False) -> Toolpath:
-    """Read a toolpath file by its suffix: APT/CLSF (``.apt .cls .clsf .aptsource``), Fusion JSON
-    post (``.json``) or, for anything else, RS274/NGC G-code. Moves in mm, mm/min.
-
-    ``tools`` (G-code only) replaces the tools the program's comments describe and gives cutter
-    compensation its radii; APT and Fusion JSON state their own cutters."""
-    suffix = path.suffix.lower()
-    if suffix in (".apt", ".cls", ".clsf", ".aptsource"):
-        from fusioncut.io.apt import read_apt
-
-        return read_apt(path)
-    if suffix == ".json":
-        from fusioncut.io.fusion_json import read_fusion_json
-
-        return read_fusion_json(path)
-    from fusioncut.io.gcode import read_gcode
-
-    return read_gcode(path, tools=tools or None, strict=strict)
