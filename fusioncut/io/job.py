@@ -215,7 +215,9 @@ def engine_option_fields() -> tuple[OptionField, ...]:
 
 def _engine_option(f: OptionField) -> tuple[Any, Any]:
     default = f.default.value if isinstance(f.default, Enum) else f.default
-    return f.type, Field(default, description=f.help or None, allow_inf_nan=False, **OPTION_BOUNDS.get(f.name, {}))
+    numeric = f.type in (float, int, float | None, int | None)
+    return f.type, Field(default, description=f.help or None, **({"allow_inf_nan": False} if numeric else {}),
+                         **OPTION_BOUNDS.get(f.name, {}))
 
 
 class _RunOptions(_Strict):
