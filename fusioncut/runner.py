@@ -348,13 +348,14 @@ def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir:
             done[s.operation] = done.get(s.operation, 0) + 1
         on_start(RunPlan(dict(expected), done, total, start_at))
 
-    tools = {t.label: _tool_description(t) for t in toolpath.tools.values()}
+    tools = {t.label: t for t in toolpath.tools.values()}
     if default_tool is not None:
-        tools.setdefault(default_tool.label, _tool_description(default_tool))
+        tools.setdefault(default_tool.label, default_tool)
     snapshots = set(snapshot_cls)
     exported: list[Path] = []
     interrupted = False
-    writer = ResultWriter(out_dir, job_hash=job_id, tools=tools, expected_cls=expected, keep_below=start_at)
+    writer = ResultWriter(out_dir, job_hash=job_id, tools=tools, options=engine.options, expected_cls=expected,
+                          keep_below=start_at)
     # engine_state: index of the last CL the engine state includes; recorded: the last CL whose row
     # the writer holds. A checkpoint is only consistent when they agree and no step is half done.
     engine_state = recorded = start_at - 1
@@ -377,7 +378,7 @@ def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir:
                 if m is None:
                     break
                 engine_state = m.cl_index
-                writer.add(m, length_mm=segments[m.cl_index].length)
+                writer.add(m, length_mm=segments[m.cl_index].length, spindle_rpm=segments[m.cl_index].spindle_rpm)
                 recorded = m.cl_index
                 ops.setdefault(m.operation, OperationSummary(m.operation)).add(m)
                 _log_cl(m)
@@ -419,10 +420,6 @@ def _save_checkpoint(engine: Any, ck_dir: Path, next_cl: int) -> bool:
                   "starts from the last checkpoint written", next_cl, type(exc).__name__, exc)
         return False
     return True
-
-
-def _tool_description(t: MillingTool) -> dict[str, Any]:
-    return {"kind": t.kind, "diameter_mm": t.diameter, "flute_length_mm": t.flute_length}
 
 
 def _log_cl(m: EngagementMap) -> None:

@@ -5,9 +5,13 @@ A results directory holds
 * ``cl.parquet`` / ``cl.csv`` — one row per cutter location (CL segment),
 * ``slices.parquet`` / ``slices.csv`` — one row per engaged arc (slice x interval),
 * ``summary.csv`` — one row per operation,
-* ``metadata.json`` — units, angle convention, tools, FusionCut version and job hash (the same JSON is
-  stored in the Parquet schema metadata under the key ``fusioncut``; every Parquet field also carries
-  its own ``unit`` and ``description``).
+* ``metadata.json`` — what the engine knew beyond the rows (the same JSON is stored in the Parquet
+  schema metadata under the key ``fusioncut``; every Parquet field also carries its own ``unit`` and
+  ``description``): ``engine_options`` (every :class:`~fusioncut.engines.base.EngineOptions` field,
+  enums and paths as text, tuples as lists), ``slice_height_mm``, ``tools`` (tool label -> the tool's
+  full record, :mod:`fusioncut.io.tool_records`, from which :func:`load_results` rebuilds the
+  :class:`~fusioncut.model.tools.MillingTool`), units, dtypes, angle convention, FusionCut version
+  and job hash.
 
 The CSV and Parquet files hold the same values: floats are written at full round-trip precision, an
 empty CSV cell in a float column is NaN, and an empty cell in a text column is the empty string.
@@ -15,93 +19,26 @@ empty CSV cell in a float column is NaN, and an empty cell in a text column is t
 Angles are degrees. Columns named ``*_deg`` without ``machine`` are **immersion** angles (measured from
 +y of the feed frame in the sense the teeth turn, see :mod:`fusioncut.model.angles`); columns named
 ``*_machine_deg`` are **machine** angles (counter-clockwise from +X seen from +Z). Heights ``z_tool_mm``
-are measured along the tool axis from the tool tip at the CL.
+are measured along the tool axis from the tool tip at the CL. Each slice row carries its band
+``[z_lo_mm, z_hi_mm]``: the engine cuts the flutes into bands ``[k, k+1) * slice_height`` above the tip,
+clips each to the flute contact and evaluates it in its middle (``z_tool_mm``), so readers (forces,
+plots, the 3D view) take the bands from the rows instead of guessing the spacing.
 
-``cl`` table (one row per CL, in the order the engine delivered them)
----------------------------------------------------------------------
-
-======================== ========= ======== ================================================================
-column                   dtype     unit     meaning
-======================== ========= ======== ================================================================
-cl                       int64     -        CL index (0-based, program order)
-operation                string    -        operation (program section) the move belongs to
-file                     string    -        source file of the move
-line                     int64     -        1-based source line (0: unknown)
-tool                     string    -        tool label (name, ``T<n>`` or kind)
-spindle                  string    -        spindle sense: ``cw`` (M3) or ``ccw`` (M4)
-x, y, z                  float64   mm       CL point (tool tip) at the end of the segment, machine frame
-x0, y0, z0               float64   mm       CL point at the start of the segment, machine frame
-feed_angle_machine_deg   float64   deg      machine angle of the horizontal feed direction (immersion frame)
-feed_mm_min              float64   mm/min   programmed feed; NaN for rapids and unknown feeds
-length_mm                float64   mm       path length of the segment (arc length for arcs)
-status                   category  -        ``engaged``, ``air``, ``rapid`` or ``failed``
-reason                   string    -        why a CL failed (empty otherwise)
-warnings                 string    -        engine warnings, joined with `` | ``
-ap_mm                    float64   mm       axial depth of cut (height range of flute contact)
-ae_mm                    float64   mm       radial depth of cut (largest slice radial width)
-entry_min_deg            float64   deg      smallest entry angle over all slices (immersion); NaN: no contact
-entry_max_deg            float64   deg      largest entry angle over all slices (immersion)
-exit_min_deg             float64   deg      smallest exit angle over all slices (immersion)
-exit_max_deg             float64   deg      largest exit angle over all slices (immersion)
-contact_area_mm2         float64   mm²      flute contact area
-shank_contact_area_mm2   float64   mm²      shank contact area (rubbing, not cutting)
-rubbing_slices           int64     -        slices whose contact only rubs (removed width across the path under
-                                            ``min_chip_thickness``): no rows in ``slices``, not counted in ap/ae
-removed_volume_mm3       float64   mm³      material removed by the segment
-mrr_mm3_min              float64   mm³/min  removed volume / (length / feed); NaN for rapids, failed CLs,
-                                            unknown feed or zero length
-sweep_method             string    -        exact, sampled, or step (a piece of a ramp or helix swept level at
-                                            its end height, within ramp_step); empty when no sweep was built
-                                            (no material within the tool's reach)
-time_ms                  float64   ms       engine compute time of the CL (its "total" timing)  
-======================== ========= ======== ================================================================
-
-``slices`` table (one row per engaged arc; slices without contact have no rows)
---------------------------------------------------------------------------------
-
-================== ======= ==== ==========================================================================
-column             dtype   unit meaning
-================== ======= ==== ==========================================================================
-cl                 int64   -    CL index (joins the ``cl`` table)
-z_tool_mm          float64 mm   slice height above the tool tip, along the tool axis
-z_machine_mm       float64 mm   the same height in the machine frame
-radius_mm          float64 mm   tool radius at that height
-interval           int64   -    0-based index of the arc within its slice
-entry_deg          float64 deg  immersion angle where the tooth enters (0 <= entry < 360)
-exit_deg           float64 deg  immersion angle where the tooth leaves (entry < exit <= entry + 360)
-entry_machine_deg  float64 deg  machine angle where the arc starts counter-clockwise (0 <= . < 360)
-exit_machine_deg   float64 deg  machine angle where the arc ends counter-clockwise (entry_machine < .
-                                <= entry_machine + 360)
-================== ======= ==== ==========================================================================
+Results written before the metadata and columns above existed still load (:data:`ADDED_COLUMNS`): what
+they do not record is NaN in its column and named in :attr:`Results.missing`, never guessed.
 
 The machine columns follow the project's machine-interval convention (counter-clockwise bounds,
 :func:`fusioncut.model.engagement.EngagementMap.machine_intervals`): for a counter-clockwise (M4)
 spindle the tooth enters at ``entry_machine_deg``; for a clockwise (M3) spindle it enters at
 ``exit_machine_deg`` (mod 360) and leaves at ``entry_machine_deg``.
 
-``summary`` table (one row per operation, in order of first appearance)
------------------------------------------------------------------------
-
-==================== ======= ==== ===============================================================
-column               dtype   unit meaning
-==================== ======= ==== ===============================================================
-operation            string  -    operation name
-cls                  int64   -    CLs of the operation (the caller's expected count, else processed)
-processed            int64   -    CLs with a result written
-engaged              int64   -    CLs with status ``engaged``
-air                  int64   -    CLs with status ``air``
-rapid                int64   -    CLs with status ``rapid``
-failed               int64   -    CLs with status ``failed``
-time_s               float64 s    engine compute time (sum of ``time_ms``)
-volume_removed_mm3   float64 mm³  sum of ``removed_volume_mm3``
-max_ae_mm            float64 mm   largest ``ae_mm``
-max_ap_mm            float64 mm   largest ``ap_mm``
-==================== ======= ==== ===============================================================
-
 Writing is incremental and crash-safe: :class:`ResultWriter` appends CLs in memory and flushes them in
 batches; every file is written to a temporary file in the same directory and moved into place with
 ``os.replace``, so a reader (or an interrupted run) only ever sees complete files. The slice files are
 replaced before the CL files, so every CL present in ``cl.*`` has its slices on disk.
+
+The column tables below are rendered from :mod:`fusioncut.io.result_columns` (the one description of
+every column).
 """
 from __future__ import annotations
 
@@ -110,9 +47,11 @@ import math
 import os
 import time
 from collections.abc import Mapping
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from enum import Enum
+from typing import Any
 
 import pandas as pd
 import pyarrow as pa
@@ -120,10 +59,21 @@ import pyarrow.parquet as pq
 
 from fusioncut import __version__
 from fusioncut.errors import InputError
+from fusioncut.io.result_columns import (
+    ANGLE_KIND, CL_COLUMNS, SLICE_COLUMNS, STATUS_CATEGORIES, SUMMARY_COLUMNS, TABLES, Column, column_table,
+)
+from fusioncut.io.tool_records import tool_from_record, tool_record
 from fusioncut.model.engagement import CLStatus, EngagementMap
+from fusioncut.model.tools import MillingTool
+
+if __doc__:  # the column tables, rendered from their one description (absent under python -OO)
+    __doc__ += "".join(f"\n``{name}`` table\n{'-' * (len(name) + 10)}\n\n{column_table(name, 'rst')}"
+                       for name in TABLES)
 
 FORMAT_NAME = "fusioncut-results"
-FORMAT_VERSION = 1
+# 2: metadata.json records engine_options, slice_height_mm and full tool records; cl has spindle_rpm,
+# slices have z_lo_mm / z_hi_mm
+FORMAT_VERSION = 2
 METADATA_KEY = b"fusioncut"
 
 ANGLE_CONVENTION = (
@@ -134,93 +84,6 @@ ANGLE_CONVENTION = (
     "+X seen from +Z; a machine interval is given counter-clockwise (entry_machine < exit_machine), so "
     "for a CW (M3) spindle the tooth enters at exit_machine_deg. See fusioncut.model.angles."
 )
-
-STATUS_CATEGORIES = [s.value for s in CLStatus]
-
-
-class Column(NamedTuple):
-    """One documented column: ``dtype`` is the pandas dtype after :func:`load_results`."""
-
-    name: str
-    dtype: str  # "int64" | "float64" | "string" | "category"
-    unit: str  # "" for dimensionless / text
-    description: str
-
-
-def _c(name: str, dtype: str, unit: str, description: str) -> Column:
-    return Column(name, dtype, unit, description)
-
-
-CL_COLUMNS: tuple[Column, ...] = (
-    _c("cl", "int64", "", "CL index (0-based, program order)"),
-    _c("operation", "string", "", "operation the move belongs to"),
-    _c("file", "string", "", "source file of the move"),
-    _c("line", "int64", "", "1-based source line (0: unknown)"),
-    _c("tool", "string", "", "tool label"),
-    _c("spindle", "string", "", "spindle sense: cw (M3) or ccw (M4)"),
-    _c("x", "float64", "mm", "CL point (tool tip) at the end of the segment, machine frame"),
-    _c("y", "float64", "mm", "CL point (tool tip) at the end of the segment, machine frame"),
-    _c("z", "float64", "mm", "CL point (tool tip) at the end of the segment, machine frame"),
-    _c("x0", "float64", "mm", "CL point at the start of the segment, machine frame"),
-    _c("y0", "float64", "mm", "CL point at the start of the segment, machine frame"),
-    _c("z0", "float64", "mm", "CL point at the start of the segment, machine frame"),
-    _c("feed_angle_machine_deg", "float64", "deg", "machine angle of the horizontal feed direction"),
-    _c("feed_mm_min", "float64", "mm/min", "programmed feed; NaN for rapids and unknown feeds"),
-    _c("length_mm", "float64", "mm", "path length of the segment (arc length for arcs)"),
-    _c("status", "category", "", "engaged, air, rapid or failed"),
-    _c("reason", "string", "", "why the CL failed (empty otherwise)"),
-    _c("warnings", "string", "", "engine warnings joined with ' | '"),
-    _c("ap_mm", "float64", "mm", "axial depth of cut"),
-    _c("ae_mm", "float64", "mm", "radial depth of cut (largest slice radial width)"),
-    _c("entry_min_deg", "float64", "deg", "smallest entry angle over all slices (immersion); NaN: no contact"),
-    _c("entry_max_deg", "float64", "deg", "largest entry angle over all slices (immersion)"),
-    _c("exit_min_deg", "float64", "deg", "smallest exit angle over all slices (immersion)"),
-    _c("exit_max_deg", "float64", "deg", "largest exit angle over all slices (immersion)"),
-    _c("contact_area_mm2", "float64", "mm^2", "flute contact area"),
-    _c("shank_contact_area_mm2", "float64", "mm^2", "shank contact area (rubbing, not cutting)"),
-    _c("rubbing_slices", "int64", "", "slices whose contact only rubs (removed width across the path under "
-       "min_chip_thickness): no slices rows, not in ap/ae"),
-    _c("removed_volume_mm3", "float64", "mm^3", "material removed by the segment"),
-    _c("mrr_mm3_min", "float64", "mm^3/min",
-       "removed volume / (length / feed); NaN for rapids, failed CLs, unknown feed or zero length"),
-    _c("sweep_method", "string", "", "how the swept volume was built: exact, step (ramp or helix piece swept level at its "
-       "end height, within ramp_step) or sampled; empty when no sweep was built (no material within reach)"),
-    _c("time_ms", "float64", "ms", "engine compute time of the CL"),
-)
-
-SLICE_COLUMNS: tuple[Column, ...] = (
-    _c("cl", "int64", "", "CL index"),
-    _c("z_tool_mm", "float64", "mm", "slice height above the tool tip along the tool axis"),
-    _c("z_machine_mm", "float64", "mm", "slice height in the machine frame"),
-    _c("radius_mm", "float64", "mm", "tool radius at the slice height"),
-    _c("interval", "int64", "", "0-based index of the arc within its slice"),
-    _c("entry_deg", "float64", "deg", "immersion angle where the tooth enters"),
-    _c("exit_deg", "float64", "deg", "immersion angle where the tooth leaves"),
-    _c("entry_machine_deg", "float64", "deg", "machine angle where the arc starts, counter-clockwise"),
-    _c("exit_machine_deg", "float64", "deg", "machine angle where the arc ends, counter-clockwise"),
-)
-
-SUMMARY_COLUMNS: tuple[Column, ...] = (
-    _c("operation", "string", "", "operation name"),
-    _c("cls", "int64", "", "CLs of the operation (expected count, else processed)"),
-    _c("processed", "int64", "", "CLs with a result written"),
-    _c("engaged", "int64", "", "CLs with status engaged"),
-    _c("air", "int64", "", "CLs with status air"),
-    _c("rapid", "int64", "", "CLs with status rapid"),
-    _c("failed", "int64", "", "CLs with status failed"),
-    _c("time_s", "float64", "s", "engine compute time"),
-    _c("volume_removed_mm3", "float64", "mm^3", "material removed"),
-    _c("max_ae_mm", "float64", "mm", "largest ae"),
-    _c("max_ap_mm", "float64", "mm", "largest ap"),
-)
-
-TABLES: dict[str, tuple[Column, ...]] = {"cl": CL_COLUMNS, "slices": SLICE_COLUMNS, "summary": SUMMARY_COLUMNS}
-
-# Which angle convention each angle column uses; stored in the metadata so no column is ambiguous.
-ANGLE_KIND: dict[str, str] = {
-    **{c.name: "immersion" for c in CL_COLUMNS + SLICE_COLUMNS if c.unit == "deg" and "machine" not in c.name},
-    **{c.name: "machine" for c in CL_COLUMNS + SLICE_COLUMNS if c.unit == "deg" and "machine" in c.name},
-}
 
 _ARROW_TYPES = {"int64": pa.int64(), "float64": pa.float64(), "string": pa.string(), "category": pa.string()}
 
@@ -264,11 +127,12 @@ def _nan_if_none(v: float | None) -> float:
     return math.nan if v is None else float(v)
 
 
-def cl_row(em: EngagementMap, length_mm: float | None = None) -> dict[str, Any]:
+def cl_row(em: EngagementMap, length_mm: float | None = None, spindle_rpm: float | None = None) -> dict[str, Any]:
     """The ``cl`` table row of one engagement map.
 
     ``length_mm`` is the path length of the move (mm); the engagement map only knows the end points,
     so without it the chord length is used, which underestimates arcs (and so overestimates MRR).
+    ``spindle_rpm`` is the program's spindle speed at the move (rev/min; ``None``: not programmed).
     """
     if length_mm is None:
         length_mm = math.dist(em.start, em.position)
@@ -288,6 +152,7 @@ def cl_row(em: EngagementMap, length_mm: float | None = None) -> dict[str, Any]:
         "line": int(em.source.line),
         "tool": em.tool,
         "spindle": em.spindle.value,
+        "spindle_rpm": _nan_if_none(spindle_rpm),
         "x": float(em.position[0]), "y": float(em.position[1]), "z": float(em.position[2]),
         "x0": float(em.start[0]), "y0": float(em.start[1]), "z0": float(em.start[2]),
         "feed_angle_machine_deg": float(em.feed_angle),
@@ -312,13 +177,29 @@ def cl_row(em: EngagementMap, length_mm: float | None = None) -> dict[str, Any]:
     }
 
 
-def slice_rows(em: EngagementMap) -> list[dict[str, Any]]:
-    """The ``slices`` table rows of one engagement map: one per engaged arc."""
+def slice_band(z: float, slice_height: float, axial_range: tuple[float, float]) -> tuple[float, float] | None:
+    """The band (mm above the tip) of the slice at height ``z``, by the engine's slice rule
+    (:func:`fusioncut.engines.brep.engine.slice_heights`): band ``k = floor(z / slice_height)`` is
+    ``[k, k+1) * slice_height`` clipped to the flute contact ``axial_range``, and the slice sits in its
+    middle. ``None`` when ``z`` does not sit there (to 1e-9 mm): a map the engine did not make."""
+    k = math.floor(z / slice_height + 1e-9)
+    lo, hi = max(k * slice_height, axial_range[0]), min((k + 1) * slice_height, axial_range[1])
+    if hi <= lo or abs(0.5 * (lo + hi) - z) > 1e-9 * max(1.0, abs(z)):
+        return None
+    return lo, hi
+
+
+def slice_rows(em: EngagementMap, slice_height: float | None = None) -> list[dict[str, Any]]:
+    """The ``slices`` table rows of one engagement map: one per engaged arc. With the engine's
+    ``slice_height`` (mm) each row carries its band (:func:`slice_band`); without, the band is NaN."""
     rows = []
     for s in em.slices:
+        band = slice_band(s.z, slice_height, em.axial_range) if s.intervals and slice_height else None
+        lo, hi = band or (math.nan, math.nan)
         for k, (iv, (m0, m1)) in enumerate(zip(s.intervals, em.machine_intervals(s))):
             rows.append({
                 "cl": int(em.cl_index), "z_tool_mm": float(s.z), "z_machine_mm": float(s.z_machine),
+                "z_lo_mm": lo, "z_hi_mm": hi,
                 "radius_mm": float(s.radius), "interval": k, "entry_deg": float(iv.entry),
                 "exit_deg": float(iv.exit), "entry_machine_deg": float(m0), "exit_machine_deg": float(m1),
             })
@@ -407,8 +288,12 @@ class ResultWriter:
     A flush that fails (disk full, ...) raises and keeps its CLs pending; the next flush retries them
     without writing any row twice.
 
-    ``tools`` optionally maps tool labels to JSON-serialisable descriptions for the metadata; labels
-    seen in the engagement maps are added with an empty description.
+    ``tools`` maps tool labels to the tools (:class:`~fusioncut.model.tools.MillingTool`, stored as
+    their full records, :func:`~fusioncut.io.tool_records.tool_record`) or to JSON-serialisable
+    descriptions; labels seen in the engagement maps without one are added with an empty description.
+    ``options`` are the engine's options (:class:`~fusioncut.engines.base.EngineOptions` or a mapping
+    of its fields), stored as ``engine_options``; their ``slice_height`` is also ``slice_height_mm``
+    and gives each slice row its band (:func:`slice_rows`). Without them the bands are NaN.
 
     ``keep_below`` resumes a run: the rows of CLs ``< keep_below`` already in the directory are kept
     and every later row is dropped, so CLs recomputed after a checkpoint are never listed twice
@@ -420,7 +305,8 @@ class ResultWriter:
         directory: str | os.PathLike[str],
         *,
         job_hash: str = "",
-        tools: Mapping[str, Any] | None = None,
+        tools: Mapping[str, MillingTool | Mapping[str, Any]] | None = None,
+        options: Any = None,
         expected_cls: Mapping[str, int] | None = None,
         batch_size: int = 64,
         max_io_fraction: float | None = 0.1,
@@ -433,7 +319,11 @@ class ResultWriter:
         self.directory = Path(directory)
         self.directory.mkdir(parents=True, exist_ok=True)
         self.job_hash = job_hash
-        self.tools: dict[str, Any] = dict(tools or {})
+        self.tools: dict[str, Any] = {label: tool_record(t) if isinstance(t, MillingTool) else json_record(t)
+                                      for label, t in (tools or {}).items()}
+        self.options: dict[str, Any] | None = None if options is None else json_record(options)
+        dz = (self.options or {}).get("slice_height")
+        self.slice_height: float | None = float(dz) if dz is not None else None
         self.expected_cls = dict(expected_cls or {})
         self.batch_size = batch_size
         self.max_io_fraction = max_io_fraction
@@ -470,13 +360,14 @@ class ResultWriter:
         """Number of CLs added but not yet on disk."""
         return len(self._pending_cl)
 
-    def add(self, em: EngagementMap, *, length_mm: float | None = None) -> None:
-        """Add one CL; ``length_mm`` is its path length (mm, see :func:`cl_row`)."""
+    def add(self, em: EngagementMap, *, length_mm: float | None = None, spindle_rpm: float | None = None) -> None:
+        """Add one CL; ``length_mm`` is its path length (mm) and ``spindle_rpm`` the program's spindle
+        speed at its move (rev/min), see :func:`cl_row`."""
         if self._closed:
             raise ValueError("ResultWriter is closed")
         self.tools.setdefault(em.tool, {})
-        self._pending_cl.append(cl_row(em, length_mm))
-        self._pending_slices.extend(slice_rows(em))
+        self._pending_cl.append(cl_row(em, length_mm, spindle_rpm))
+        self._pending_slices.extend(slice_rows(em, self.slice_height))
         if len(self._pending_cl) >= self.batch_size and self._flush_allowed():
             self.flush()
 
@@ -516,6 +407,8 @@ class ResultWriter:
             "job_hash": self.job_hash,
             "angle_convention": ANGLE_CONVENTION,
             "angle_columns": ANGLE_KIND,
+            "engine_options": self.options,
+            "slice_height_mm": self.slice_height,
             "tools": self.tools,
             "units": {t: {c.name: c.unit for c in cols} for t, cols in TABLES.items()},
             "dtypes": {t: {c.name: c.dtype for c in cols} for t, cols in TABLES.items()},
@@ -576,6 +469,22 @@ class ResultWriter:
         return path.stat().st_size
 
 
+def json_record(value: Any) -> Any:
+    """``value`` as plain JSON data: dataclasses as objects of their fields, enums as their values,
+    paths as text, tuples as lists (what ``metadata.json`` records of options and tools)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        value = {f.name: getattr(value, f.name) for f in dataclasses.fields(value)}
+    if isinstance(value, Mapping):
+        return {str(k): json_record(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_record(v) for v in value]
+    if isinstance(value, Enum):
+        return value.value
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return value
+
+
 def _rows_below(directory: Path, keep_below: int) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """The ``cl`` and ``slices`` rows of CLs ``< keep_below`` in an existing results directory
     (none when it holds no results), in the order they were written."""
@@ -605,11 +514,17 @@ def _to_arrow(df: pd.DataFrame, schema: pa.Schema) -> pa.Table:
 
 @dataclass
 class Results:
-    """A loaded results directory: DataFrames with the documented columns and dtypes.
+    """A loaded results directory: DataFrames with the documented columns and dtypes, and what the
+    engine knew.
 
     ``cl`` (one row per CL), ``slices`` (one row per engaged arc), ``summary`` (one row per
-    operation) and ``metadata`` (units, angle convention, tools, version, job hash). ``source`` says
-    which format was read: ``"parquet"`` or ``"csv"``.
+    operation) and ``metadata`` (``metadata.json`` as read). ``source`` says which format was read:
+    ``"parquet"`` or ``"csv"``. ``options``: the engine options as recorded (field -> JSON value;
+    ``None`` when not recorded); ``slice_height``: the engine's slice height (mm; ``None`` when not
+    recorded); ``tools``: tool label -> the :class:`~fusioncut.model.tools.MillingTool` rebuilt from
+    its record. ``missing`` names what the folder does not record (results written before it was, or
+    a tool without a full record) with why: ``engine_options``, ``slice_height``, ``spindle_rpm``
+    (NaN column), ``slice_bands`` (NaN ``z_lo_mm``/``z_hi_mm``), ``tool <label>``.
     """
 
     cl: pd.DataFrame
@@ -617,6 +532,11 @@ class Results:
     summary: pd.DataFrame
     metadata: dict[str, Any] = field(default_factory=dict)
     source: str = "parquet"
+    options: dict[str, Any] | None = None
+    slice_height: float | None = None
+    tools: dict[str, MillingTool] = field(default_factory=dict)
+    missing: dict[str, str] = field(default_factory=dict)
+    path: Path | None = None
 
     def row(self, cl: int) -> pd.Series:
         """The ``cl`` row of CL ``cl``; raises :class:`InputError` when it is not in the results."""
@@ -631,8 +551,22 @@ class Results:
         """Slice rows of CL ``cl``, sorted by height and arc index."""
         return self.slices[self.slices["cl"] == cl].sort_values(["z_tool_mm", "interval"])
 
+    def tool(self, label: str) -> MillingTool:
+        """The tool of label ``label``; :class:`InputError` naming the folder when it has no full record."""
+        if label in self.tools:
+            return self.tools[label]
+        why = self.missing.get(f"tool {label}", "no such tool label in metadata.json")
+        raise InputError(f"tool {label}: {why}", self.path)
 
-def _read_csv(path: Path, columns: tuple[Column, ...]) -> pd.DataFrame:
+    def require_slice_height(self) -> float:
+        """:attr:`slice_height`, or an :class:`InputError` naming the folder when it is not recorded."""
+        if self.slice_height is None:
+            raise InputError(f"{self.missing.get('slice_height', 'the slice height is not recorded')}: give the "
+                             "engine's slice height (--slice-height)", self.path)
+        return self.slice_height
+
+
+def _read_csv(path: Path, columns: tuple[Column, ...], filled: set[str] | None = None) -> pd.DataFrame:
     dtypes = {c.name: ("string" if c.dtype in ("string", "category") else c.dtype) for c in columns}
     floats = [c.name for c in columns if c.dtype == "float64"]
     kw: dict[str, Any] = {}
@@ -641,31 +575,40 @@ def _read_csv(path: Path, columns: tuple[Column, ...]) -> pd.DataFrame:
     # only an empty float cell is NaN; text like "NA" or "" stays text
     df = pd.read_csv(path, dtype=dtypes, keep_default_na=False, na_values={c: [""] for c in floats},
                      encoding="utf-8", **kw)
-    return _coerce(_with_later_columns(df, columns, path), columns)
+    return _coerce(_with_later_columns(df, columns, path, filled), columns)
 
 
 # Columns added after results were first written, with the value they mean in older results: such a
-# folder still loads (a CL of an older run was never called rubbing).
-ADDED_COLUMNS: dict[str, Any] = {"rubbing_slices": 0}
+# folder still loads. A CL of an older run was never called rubbing (0); its spindle speed and its
+# slices' bands were not recorded (NaN: unknown, and named in Results.missing).
+ADDED_COLUMNS: dict[str, Any] = {"rubbing_slices": 0, "spindle_rpm": math.nan, "z_lo_mm": math.nan,
+                                 "z_hi_mm": math.nan}
+# what Results.missing calls an added column an older folder lacks, and why
+_NOT_RECORDED = {"spindle_rpm": "spindle_rpm", "z_lo_mm": "slice_bands", "z_hi_mm": "slice_bands"}
 
 
-def _with_later_columns(df: pd.DataFrame, columns: tuple[Column, ...], path: Path) -> pd.DataFrame:
-    """``df`` with the :data:`ADDED_COLUMNS` it lacks filled in; any other missing column is an error."""
+def _with_later_columns(df: pd.DataFrame, columns: tuple[Column, ...], path: Path,
+                        filled: set[str] | None = None) -> pd.DataFrame:
+    """``df`` with the :data:`ADDED_COLUMNS` it lacks filled in (their names added to ``filled``); any
+    other missing column is an error."""
     missing = [c.name for c in columns if c.name not in df]
     if any(name not in ADDED_COLUMNS for name in missing):
         raise InputError(f"missing columns {', '.join(n for n in missing if n not in ADDED_COLUMNS)}", path)
+    if filled is not None:
+        filled.update(missing)
     return df.assign(**{name: ADDED_COLUMNS[name] for name in missing}) if missing else df
 
 
-def _read_table(directory: Path, name: str, columns: tuple[Column, ...]) -> tuple[pd.DataFrame, dict, str]:
+def _read_table(directory: Path, name: str, columns: tuple[Column, ...],
+                filled: set[str]) -> tuple[pd.DataFrame, dict, str]:
     pq_path, csv_path = directory / f"{name}.parquet", directory / f"{name}.csv"
     if pq_path.exists():
         table = pq.read_table(pq_path)
         raw = (table.schema.metadata or {}).get(METADATA_KEY)
-        df = _with_later_columns(table.to_pandas(), columns, pq_path)
+        df = _with_later_columns(table.to_pandas(), columns, pq_path, filled)
         return _coerce(df, columns), (json.loads(raw) if raw else {}), "parquet"
     if csv_path.exists():
-        return _read_csv(csv_path, columns), {}, "csv"
+        return _read_csv(csv_path, columns, filled), {}, "csv"
     raise InputError(f"no {name}.parquet or {name}.csv: not a FusionCut results directory", directory)
 
 
@@ -675,18 +618,20 @@ def load_results(path: str | os.PathLike[str], *, prefer: str = "parquet") -> Re
     Reads ``cl.parquet`` and ``slices.parquet`` when present, else the CSV files (``prefer="csv"``
     forces CSV). Columns and dtypes are those documented in this module; ``status`` is a categorical
     with the categories engaged, air, rapid, failed; text columns are pandas ``string`` without NA.
+    The engine options, slice height and tools come from the metadata (:class:`Results`).
     """
     directory = Path(path)
     if not directory.is_dir():
         raise InputError("results directory not found", directory)
     if prefer not in ("parquet", "csv"):
         raise ValueError(f"prefer must be 'parquet' or 'csv', got {prefer!r}")
+    filled: set[str] = set()
     if prefer == "csv":
-        cl, meta, source = _read_csv_or_fail(directory, "cl", CL_COLUMNS), {}, "csv"
-        slices = _read_csv_or_fail(directory, "slices", SLICE_COLUMNS)
+        cl, meta, source = _read_csv_or_fail(directory, "cl", CL_COLUMNS, filled), {}, "csv"
+        slices = _read_csv_or_fail(directory, "slices", SLICE_COLUMNS, filled)
     else:
-        cl, meta, source = _read_table(directory, "cl", CL_COLUMNS)
-        slices, _, _ = _read_table(directory, "slices", SLICE_COLUMNS)
+        cl, meta, source = _read_table(directory, "cl", CL_COLUMNS, filled)
+        slices, _, _ = _read_table(directory, "slices", SLICE_COLUMNS, filled)
     if not meta and (directory / "metadata.json").exists():
         meta = json.loads((directory / "metadata.json").read_text(encoding="utf-8"))
     # A reader racing a flush (or a run killed during one) can see slices of CLs whose cl rows are
@@ -694,17 +639,36 @@ def load_results(path: str | os.PathLike[str], *, prefer: str = "parquet") -> Re
     slices = slices[slices["cl"].isin(cl["cl"])].reset_index(drop=True)
     summary_path = directory / "summary.csv"
     summary = _read_csv(summary_path, SUMMARY_COLUMNS) if summary_path.exists() else summarize(cl)
-    return Results(cl=cl, slices=slices, summary=summary, metadata=meta, source=source)
+    missing = {_NOT_RECORDED[name]: "results written before it was recorded"
+               for name in sorted(filled) if name in _NOT_RECORDED}
+    options = meta.get("engine_options")
+    if not isinstance(options, dict):
+        options = None
+        missing["engine_options"] = "the engine options are not recorded"
+    slice_height = meta.get("slice_height_mm")
+    if not isinstance(slice_height, (int, float)) or isinstance(slice_height, bool) or not slice_height > 0:
+        slice_height = None
+        missing["slice_height"] = "the slice height is not recorded (results written before it was)"
+    tools: dict[str, MillingTool] = {}
+    for label, record in (meta.get("tools") or {}).items():
+        try:
+            tools[label] = tool_from_record(record, label)
+        except InputError as exc:
+            missing[f"tool {label}"] = f"metadata.json has no full record of it ({exc.reason})"
+    return Results(cl=cl, slices=slices, summary=summary, metadata=meta, source=source, options=options,
+                   slice_height=None if slice_height is None else float(slice_height), tools=tools,
+                   missing=missing, path=directory)
 
 
-def _read_csv_or_fail(directory: Path, name: str, columns: tuple[Column, ...]) -> pd.DataFrame:
+def _read_csv_or_fail(directory: Path, name: str, columns: tuple[Column, ...], filled: set[str]) -> pd.DataFrame:
     path = directory / f"{name}.csv"
     if not path.exists():
         raise InputError(f"no {name}.csv", directory)
-    return _read_csv(path, columns)
+    return _read_csv(path, columns, filled)
 
 
 __all__ = [
-    "ANGLE_CONVENTION", "CL_COLUMNS", "SLICE_COLUMNS", "SUMMARY_COLUMNS", "Column", "ResultWriter", "Results",
-    "cl_row", "load_results", "slice_rows", "summarize",
+    "ADDED_COLUMNS", "ANGLE_CONVENTION", "CL_COLUMNS", "SLICE_COLUMNS", "SUMMARY_COLUMNS", "Column", "ResultWriter",
+    "Results", "cl_row", "column_table", "json_record", "load_results", "slice_band", "slice_rows", "summarize",
+    "tool_from_record", "tool_record",
 ]

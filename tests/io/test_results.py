@@ -5,9 +5,11 @@ machine angles, MRR) are known in closed form.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -15,10 +17,11 @@ import pyarrow.parquet as pq
 import pytest
 
 from fusioncut import __version__
+from fusioncut.engines.base import EngineOptions
 from fusioncut.errors import FusionCutError, SourceLocation
 from fusioncut.io import results as res
 from fusioncut.io.results import CL_COLUMNS, SLICE_COLUMNS, SUMMARY_COLUMNS, ResultWriter, load_results
-from fusioncut.model import AngleInterval, CLStatus, EngagementMap, SliceEngagement, SpindleDirection
+from fusioncut.model import AngleInterval, CLStatus, EngagementMap, FlatEndMill, SliceEngagement, SpindleDirection
 
 R = 5.0  # tool radius, mm
 
@@ -360,3 +363,92 @@ def test_row_lookup(written):
     assert r.slices_of(2)["z_tool_mm"].is_monotonic_increasing
     with pytest.raises(FusionCutError, match="CL 99 is not in the results"):
         r.row(99)
+
+
+# -- what the engine knew: options, slice height, tools, spindle speed, slice bands -----------------
+
+DZ = 0.5
+
+
+def engine_em(i: int, axial=(0.2, 1.3), zs=(0.35, 0.75, 1.15), **kw) -> EngagementMap:
+    """A map as the engine makes it with slice height DZ: each slice in the middle of its band
+    [k, k+1) * DZ clipped to the contact ``axial`` (0.2 .. 0.5, 0.5 .. 1.0, 1.0 .. 1.3 mm)."""
+    sl = tuple(SliceEngagement(z=z, z_machine=z - 2.0, radius=R, intervals=(AngleInterval(0.0, 90.0),)) for z in zs)
+    return dataclasses.replace(make_em(i, **kw), slices=sl, axial_range=axial)
+
+
+def test_metadata_keeps_options_and_tools(tmp_path):
+    tool = FlatEndMill(20 / 3, 19.05, flutes=3, helix_angle=100 / 3, spindle=SpindleDirection.CCW, number=1,
+                       neck_diameter=6.0, shoulder_length=25.0)
+    opts = EngineOptions(slice_height=DZ, failure_dir=tmp_path / "failures", fuzzy=1e-6, cell_size=None)
+    with ResultWriter(tmp_path, tools={"T1": tool}, options=opts) as w:
+        w.add(engine_em(1))
+    meta = json.loads((tmp_path / "metadata.json").read_text())
+    assert meta["slice_height_mm"] == DZ and meta["engine_options"]["fuzzy_retries"] == list(opts.fuzzy_retries)
+    for prefer in ("parquet", "csv"):
+        r = load_results(tmp_path, prefer=prefer)
+        assert r.slice_height == DZ and r.require_slice_height() == DZ
+        assert r.tools == {"T1": tool} and r.tool("T1").flutes == 3
+        # every EngineOptions field, as JSON: paths as text, tuples as lists
+        assert set(r.options) == {f.name for f in dataclasses.fields(EngineOptions)}
+        assert r.options["failure_dir"] == str(tmp_path / "failures") and r.options["cell_size"] is None
+        rebuilt = EngineOptions(**{k: tuple(v) if isinstance(v, list) else v for k, v in r.options.items()})
+        assert dataclasses.replace(rebuilt, failure_dir=opts.failure_dir) == opts
+        assert r.missing == {}
+
+
+def test_spindle_speed_and_slice_bands_per_row(tmp_path):
+    with ResultWriter(tmp_path, options=EngineOptions(slice_height=DZ)) as w:
+        w.add(engine_em(1), spindle_rpm=12000.0)
+        w.add(engine_em(2))  # no S programmed
+        w.add(engine_em(3, axial=(0.0, 0.0)))  # slices off the engine's rule: band unknown
+    for prefer in ("parquet", "csv"):
+        r = load_results(tmp_path, prefer=prefer)
+        assert r.cl["spindle_rpm"].iloc[0] == 12000.0 and r.cl["spindle_rpm"].iloc[1:].isna().all()
+        s1 = r.slices_of(1)
+        assert s1["z_lo_mm"].tolist() == [0.2, 0.5, 1.0] and s1["z_hi_mm"].tolist() == [0.5, 1.0, 1.3]
+        assert np.allclose(0.5 * (s1["z_lo_mm"] + s1["z_hi_mm"]), s1["z_tool_mm"], rtol=0, atol=1e-12)
+        assert r.slices_of(3)[["z_lo_mm", "z_hi_mm"]].isna().all().all()
+    # without the options the writer does not know the bands
+    with ResultWriter(tmp_path / "bare") as w:
+        w.add(engine_em(1))
+    assert load_results(tmp_path / "bare").slices[["z_lo_mm", "z_hi_mm"]].isna().all().all()
+
+
+@pytest.mark.parametrize("prefer", ["parquet", "csv"])
+def test_older_folders_load_with_what_they_lack_named(tmp_path, prefer):
+    """A folder written before the metadata kept options, tools, speeds and bands: it loads, the
+    columns are NaN, and ``missing`` names each thing; asking for the slice height or a tool is a
+    clear error naming the folder."""
+    with ResultWriter(tmp_path, tools={"T1": FlatEndMill(10.0, 20.0)}, options=EngineOptions(slice_height=DZ)) as w:
+        w.add(engine_em(1), spindle_rpm=8000.0)
+    meta = json.loads((tmp_path / "metadata.json").read_text())
+    for key in ("engine_options", "slice_height_mm"):
+        del meta[key]
+    meta["tools"] = {"T1": {"kind": "flat", "diameter_mm": 10.0, "flute_length_mm": 20.0}}
+    (tmp_path / "metadata.json").write_text(json.dumps(meta))
+    for name, drop in (("cl", ["spindle_rpm"]), ("slices", ["z_lo_mm", "z_hi_mm"])):
+        table = pq.read_table(tmp_path / f"{name}.parquet")
+        old = table.drop(drop).replace_schema_metadata({b"fusioncut": json.dumps(meta).encode()})
+        pq.write_table(old, tmp_path / f"{name}.parquet")
+        csv = pd.read_csv(tmp_path / f"{name}.csv", dtype=str, keep_default_na=False)
+        csv.drop(columns=drop).to_csv(tmp_path / f"{name}.csv", index=False)
+    r = load_results(tmp_path, prefer=prefer)
+    assert set(r.missing) == {"engine_options", "slice_height", "spindle_rpm", "slice_bands", "tool T1"}
+    assert r.cl["spindle_rpm"].isna().all() and r.slices[["z_lo_mm", "z_hi_mm"]].isna().all().all()
+    assert r.options is None and r.slice_height is None and r.tools == {}
+    with pytest.raises(FusionCutError, match=rf"^{tmp_path}: the slice height is not recorded .*--slice-height"):
+        r.require_slice_height()
+    with pytest.raises(FusionCutError, match=r"tool T1: metadata.json has no full record of it .*lacks flutes"):
+        r.tool("T1")
+
+
+@pytest.mark.parametrize("name, columns", [("cl", CL_COLUMNS), ("slices", SLICE_COLUMNS),
+                                           ("summary", SUMMARY_COLUMNS)])
+def test_column_tables_render_every_column(name, columns):
+    md = res.column_table(name).splitlines()
+    assert md[0] == "| column | dtype | unit | meaning |" and len(md) == len(columns) + 2
+    for line, c in zip(md[2:], columns):
+        cells = [x.strip() for x in re.split(r"(?<!\\)\|", line)[1:-1]]  # an escaped pipe is text
+        assert cells == [f"`{c.name}`", c.dtype, c.unit or "-", c.description.replace("|", "\\|")]
+    assert f"``{columns[-1].name}``" in res.column_table(name, "rst") and f"``{name}`` table" in res.__doc__
