@@ -1,0 +1,249 @@
+"""Sweeps of a tool of revolution along a line or an XY arc / helix: their lower surface, exactly.
+
+Machine frame, mm, radians. A sweep is one float64 row of :data:`SWEEP_COLUMNS`:
+
+* ``kind`` 0, a line from ``(x0, y0, z0)`` to ``(x1, y1, z1)``: ``c(t) = start + t (end - start)``;
+* ``kind`` 1, an XY arc or helix of radius ``rho`` about ``(cx, cy)``: ``c(t) = (cx + rho cos a(t),
+  cy + rho sin a(t), z0 + t (z1 - z0))`` with ``a(t) = a0 + t sw`` (``sw`` signed, > 0
+  counter-clockwise); the row's ``x1, y1`` is the arc's end;
+
+``t`` in [0, 1], ``tool`` the index of the tool's lower profile (:mod:`.profile`) in the engine's
+table. With the lower profile ``f`` (radius ``R``), the sweep removes every point above its
+
+    lower surface  L(p) = min over t with |p - c(t)| <= R of  z(t) + f(|p - c(t)|)      (xy distances)
+
+and ``L = inf`` outside its footprint. On a line ``z(t) + f(d(t))`` is convex in ``t`` (``d`` is
+convex, ``f`` convex and non-decreasing), so its minimum is found by bisection on the sign of its
+derivative to ~1e-16 in ``t`` (closed forms where the derivative keeps a sign: a flat end mill,
+every level move's ends). On an arc the points within ``R`` form windows of angle around the
+direction of ``p``; each window is sampled at :data:`ARC_STEP` rad at most and every sampled local
+minimum is refined by golden section to ~1e-14 in ``t``: minima closer together than the step
+could merge (a level arc has one per window: there ``f(d)`` grows with the angle off ``p``).
+
+``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
+``R``, so that a wall an earlier sweep left exactly where the tool stands now (a retraced pass) is
+taken as cut, not as a zero-thickness skin.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_slope
+
+SWEEP_COLUMNS = ("kind", "x0", "y0", "z0", "x1", "y1", "z1", "cx", "cy", "rho", "a0", "sw", "tool")
+NCOL = len(SWEEP_COLUMNS)
+LINE, ARC = 0.0, 1.0
+ARC_STEP = 0.05  # rad: the arc windows' sampling step
+_GOLDEN = 0.6180339887498949
+_BISECTIONS = 64
+_GOLDEN_STEPS = 72
+
+
+def line_row(start, end, tool: int) -> np.ndarray:
+    row = np.zeros(NCOL)
+    row[0] = LINE
+    row[1:4] = start
+    row[4:7] = end
+    row[12] = tool
+    return row
+
+
+def arc_row(start, end, center, rho: float, a0: float, sw: float, tool: int) -> np.ndarray:
+    row = line_row(start, end, tool)
+    row[0] = ARC
+    row[7], row[8], row[9], row[10], row[11] = center[0], center[1], rho, a0, sw
+    return row
+
+
+# -- lines ---------------------------------------------------------------------------------------
+@njit(cache=True)
+def _line_slope(S, P, R, px, py, t):
+    """d/dt of z(t) + f(d(t)) on a line (the right derivative where d = 0)."""
+    ux, uy = S[4] - S[1], S[5] - S[2]
+    dx, dy = S[1] + t * ux - px, S[2] + t * uy - py
+    d = math.sqrt(dx * dx + dy * dy)
+    dz = S[6] - S[3]
+    fp = profile_slope(P, d if d < R else R)  # held at the edge's slope on the eps margin
+    if d <= 0.0:
+        dd = math.sqrt(ux * ux + uy * uy)
+    else:
+        dd = (dx * ux + dy * uy) / d
+    if dd == 0.0:
+        return dz
+    return dz + fp * dd
+
+
+@njit(cache=True)
+def _line_value(S, P, R, px, py, t):
+    dx, dy = S[1] + t * (S[4] - S[1]) - px, S[2] + t * (S[5] - S[2]) - py
+    d = math.sqrt(dx * dx + dy * dy)
+    return S[3] + t * (S[6] - S[3]) + profile_height(P, d if d < R else R)
+
+
+@njit(cache=True)
+def line_lower(S, P, R, px, py, eps):
+    """L(p) of a line sweep (mm); inf outside the footprint widened by ``eps``."""
+    ax, ay = S[1], S[2]
+    ux, uy = S[4] - ax, S[5] - ay
+    qx, qy = px - ax, py - ay
+    uu = ux * ux + uy * uy
+    Re = R + eps
+    if uu < 1e-30:  # a plunge: the lowest tool of the two ends
+        if qx * qx + qy * qy > Re * Re:
+            return math.inf
+        return _line_value(S, P, R, px, py, 0.0 if S[6] >= S[3] else 1.0)
+    b = (qx * ux + qy * uy) / uu
+    c = (qx * qx + qy * qy - Re * Re) / uu
+    disc = b * b - c
+    if disc < 0.0:
+        return math.inf
+    s = math.sqrt(disc)
+    lo, hi = max(0.0, b - s), min(1.0, b + s)
+    if lo > hi:
+        return math.inf
+    if _line_slope(S, P, R, px, py, lo) >= 0.0:
+        return _line_value(S, P, R, px, py, lo)
+    if _line_slope(S, P, R, px, py, hi) <= 0.0:
+        return _line_value(S, P, R, px, py, hi)
+    for _ in range(_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if _line_slope(S, P, R, px, py, mid) < 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return min(_line_value(S, P, R, px, py, lo), _line_value(S, P, R, px, py, hi))
+
+
+# -- arcs ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def _arc_value(mode, S, P, R, px, py, pz, t):
+    """mode 0: z(t) + f(min(d, R)); mode 1: phi(t) = d(t) - rho(pz - z(t)) (< 0: p strictly inside
+    the tool at t)."""
+    a = S[10] + t * S[11]
+    dx, dy = S[7] + S[9] * math.cos(a) - px, S[8] + S[9] * math.sin(a) - py
+    d = math.sqrt(dx * dx + dy * dy)
+    z = S[3] + t * (S[6] - S[3])
+    if mode == 0:
+        return z + profile_height(P, d if d < R else R)
+    r = profile_radius(P, pz - z)
+    return d - r
+
+
+@njit(cache=True)
+def _window_min(mode, S, P, R, px, py, pz, t0, t1):
+    """Least value of :func:`_arc_value` over [t0, t1]: sampled, every local minimum refined."""
+    span = abs(t1 - t0) * abs(S[11])
+    n = max(4, int(math.ceil(span / ARC_STEP)))
+    ts = np.empty(n + 1)
+    vs = np.empty(n + 1)
+    for i in range(n + 1):
+        ts[i] = t0 + (t1 - t0) * i / n
+        vs[i] = _arc_value(mode, S, P, R, px, py, pz, ts[i])
+    best = vs.min()
+    for i in range(n + 1):
+        if (i > 0 and vs[i] > vs[i - 1]) or (i < n and vs[i] > vs[i + 1]):
+            continue
+        a = ts[max(i - 1, 0)]
+        b = ts[min(i + 1, n)]
+        c = b - _GOLDEN * (b - a)
+        d = a + _GOLDEN * (b - a)
+        fc = _arc_value(mode, S, P, R, px, py, pz, c)
+        fd = _arc_value(mode, S, P, R, px, py, pz, d)
+        for _ in range(_GOLDEN_STEPS):
+            if fc <= fd:
+                b, d, fd = d, c, fc
+                c = b - _GOLDEN * (b - a)
+                fc = _arc_value(mode, S, P, R, px, py, pz, c)
+            else:
+                a, c, fc = c, d, fd
+                d = a + _GOLDEN * (b - a)
+                fd = _arc_value(mode, S, P, R, px, py, pz, d)
+        best = min(best, fc, fd)
+    return best
+
+
+@njit(cache=True)
+def arc_lower(S, P, R, px, py, eps):
+    """L(p) of an XY arc / helix sweep (mm); inf outside the footprint widened by ``eps``."""
+    qx, qy = px - S[7], py - S[8]
+    Q = math.sqrt(qx * qx + qy * qy)
+    rho, sw = S[9], S[11]
+    Re = R + eps
+    if Q * rho <= 1e-15:  # p on the axis (or a zero radius): every tool position equally far
+        if Q + rho > Re:
+            return math.inf
+        return _arc_value(0, S, P, R, px, py, 0.0, 0.0 if S[6] >= S[3] else 1.0)
+    kappa = (rho * rho + Q * Q - Re * Re) / (2.0 * rho * Q)
+    if kappa > 1.0:
+        return math.inf
+    w = math.pi if kappa <= -1.0 else math.acos(kappa)
+    psi = math.atan2(qy, qx)
+    b0 = S[10] - psi
+    b1 = b0 + sw
+    lo, hi = min(b0, b1), max(b0, b1)
+    best = math.inf
+    k0 = int(math.ceil((lo - w) / (2.0 * math.pi)))
+    k1 = int(math.floor((hi + w) / (2.0 * math.pi)))
+    for k in range(k0, k1 + 1):
+        blo = max(lo, 2.0 * math.pi * k - w)
+        bhi = min(hi, 2.0 * math.pi * k + w)
+        if blo > bhi:
+            continue
+        ta, tb = (blo - b0) / sw, (bhi - b0) / sw
+        if ta > tb:
+            ta, tb = tb, ta
+        best = min(best, _window_min(0, S, P, R, px, py, 0.0, max(ta, 0.0), min(tb, 1.0)))
+    return best
+
+
+@njit(cache=True)
+def arc_depth(S, P, R, px, py, pz):
+    """min over t of phi(t) = |p - c(t)| - rho(pz - z(t)) on an arc sweep (mm): < 0 where the point
+    lies strictly inside some tool position of the sweep."""
+    return _window_min(1, S, P, R, px, py, pz, 0.0, 1.0)
+
+
+# -- either --------------------------------------------------------------------------------------
+@njit(cache=True)
+def sweep_lower(S, P, R, px, py, eps):
+    if S[0] == 0.0:
+        return line_lower(S, P, R, px, py, eps)
+    return arc_lower(S, P, R, px, py, eps)
+
+
+@njit(cache=True)
+def end_velocity(S):
+    """(vx, vy, vz): dc/dt at t = 1 (mm per unit t)."""
+    if S[0] == 0.0:
+        return S[4] - S[1], S[5] - S[2], S[6] - S[3]
+    a = S[10] + S[11]
+    return -S[9] * S[11] * math.sin(a), S[9] * S[11] * math.cos(a), S[6] - S[3]
+
+
+def brute_lower(S: np.ndarray, P: np.ndarray, R: float, px: float, py: float, n: int = 200_001) -> float:
+    """L(p) by dense sampling of t (for tests): an upper bound that tends to L as n grows."""
+    t = np.linspace(0.0, 1.0, n)
+    if S[0] == LINE:
+        cx, cy = S[1] + t * (S[4] - S[1]), S[2] + t * (S[5] - S[2])
+    else:
+        a = S[10] + t * S[11]
+        cx, cy = S[7] + S[9] * np.cos(a), S[8] + S[9] * np.sin(a)
+    d = np.hypot(px - cx, py - cy)
+    z = S[3] + t * (S[6] - S[3])
+    ok = d <= R
+    if not ok.any():
+        return math.inf
+    return float(np.min(z[ok] + _heights(P, d[ok])))
+
+
+@njit(cache=True)
+def _heights(P, d):
+    out = np.empty(d.shape[0])
+    for i in range(d.shape[0]):
+        out[i] = profile_height(P, d[i])
+    return out

@@ -1,0 +1,113 @@
+"""The analytic engine's sweep lower surfaces against brute force (dense t) and closed forms."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from fusioncut.engines.analytic.profile import lower_profile
+from fusioncut.engines.analytic.sweeps import arc_row, brute_lower, line_row, sweep_lower
+from fusioncut.model.tools import BallEndMill, BullNoseEndMill, ChamferMill, Drill, FlatEndMill, TaperedEndMill
+
+TOOLS = {
+    "flat": FlatEndMill(10, 20),
+    "ball": BallEndMill(6, 20),
+    "bullnose": BullNoseEndMill(10, 20, corner_radius=2),
+    "tapered": TaperedEndMill(4, 20, taper_angle=10),
+    "chamfer": ChamferMill(10, 20, taper_angle=45),
+    "drill": Drill(6, 20),
+}
+N_BRUTE = 400_001
+coord = st.floats(-8, 8, allow_nan=False)
+
+
+@pytest.mark.parametrize("kind", TOOLS)
+def test_lower_profile_matches_the_tool_outline(kind):
+    """f is the tool's lowest point at each radius: radius_at(f(d)) = d inside the cutting part."""
+    tool = TOOLS[kind]
+    lp = lower_profile(tool)
+    prof = tool.profile()
+    for d in np.linspace(0.01, lp.radius - 0.01, 23):
+        h = lp.f(d)
+        if h > 1e-9:  # the flat bottom has no single radius at its height
+            assert prof.radius_at(h) == pytest.approx(d, abs=1e-9)
+            assert lp.rho(h) == pytest.approx(d, abs=1e-9)
+    assert lp.rho(-1e-6) < 0  # below the tip: no tool
+
+
+def _check(row, lp, px, py):
+    L = sweep_lower(row, lp.pieces, lp.radius, px, py, 0.0)
+    B = brute_lower(row, lp.pieces, lp.radius, px, py, N_BRUTE)
+    if math.isinf(B):
+        # the samples miss a footprint only at its very edge
+        assert math.isinf(L) or abs(L - B) > 0
+        return
+    assert not math.isinf(L)
+    assert L <= B + 1e-12  # the exact minimum is never above a sampled value
+    # and the samples come within their step of it (slope x step; steep at a ball's rim)
+    assert B - L <= 2e-3
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kind=st.sampled_from(sorted(TOOLS)), a=st.tuples(coord, coord, coord), b=st.tuples(coord, coord, coord),
+       p=st.tuples(coord, coord))
+def test_line_sweep_lower_surface_is_the_least_sampled_height(kind, a, b, p):
+    lp = lower_profile(TOOLS[kind])
+    _check(line_row(a, b, 0), lp, *p)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kind=st.sampled_from(sorted(TOOLS)), c=st.tuples(coord, coord), rho=st.floats(0.2, 8),
+       a0=st.floats(-4, 4), sw=st.floats(-13, 13).filter(lambda v: abs(v) > 1e-3),
+       z=st.tuples(coord, coord), p=st.tuples(coord, coord))
+def test_arc_and_helix_sweep_lower_surface_is_the_least_sampled_height(kind, c, rho, a0, sw, z, p):
+    lp = lower_profile(TOOLS[kind])
+    start = (c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z[0])
+    end = (c[0] + rho * math.cos(a0 + sw), c[1] + rho * math.sin(a0 + sw), z[1])
+    _check(arc_row(start, end, c, rho, a0, sw, 0), lp, *p)
+
+
+def test_ball_on_a_ramp_is_the_cylinder_about_the_centre_line():
+    """A ball's centre moves on a line; inside the ramp's span the sweep's lower surface is the
+    cylinder of radius R about that line: the lower root z of dist((x, y, z), line) = R."""
+    R = 3.0
+    lp = lower_profile(BallEndMill(2 * R, 20))
+    a, b = np.array([-20.0, -3.0, 1.0]), np.array([25.0, 4.0, -2.5])
+    row = line_row(a, b, 0)
+    w = (b - a) / np.linalg.norm(b - a)
+    c0 = a + [0, 0, R]
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        t = rng.uniform(0.2, 0.8)
+        off = rng.uniform(-0.95 * R, 0.95 * R)
+        n = np.array([-(b - a)[1], (b - a)[0], 0.0])
+        p = a + t * (b - a) + off * n / np.linalg.norm(n)
+        # |(P - c0) - ((P - c0).w) w|^2 = R^2 with P = (px, py, z): quadratic in z
+        e = np.array([0.0, 0.0, 1.0]) - w[2] * w
+        g = np.array([p[0], p[1], 0.0]) - c0
+        g = g - g.dot(w) * w
+        qa, qb, qc = e.dot(e), 2 * e.dot(g), g.dot(g) - R * R
+        z = (-qb - math.sqrt(qb * qb - 4 * qa * qc)) / (2 * qa)
+        assert sweep_lower(row, lp.pieces, R, p[0], p[1], 0.0) == pytest.approx(z, abs=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["flat", "ball", "bullnose"])
+def test_level_line_and_level_arc_closed_forms(kind):
+    """Level moves: the lower surface at lateral distance y from the path is z + f(|y|)."""
+    lp = lower_profile(TOOLS[kind])
+    R = lp.radius
+    line = line_row((-10.0, 2.0, -1.5), (10.0, 2.0, -1.5), 0)
+    arc = arc_row((7.0, 0.0, -1.5), (-7.0, 0.0, -1.5), (0.0, 0.0), 7.0, 0.0, math.pi, 0)
+    for y in np.linspace(-R + 1e-9, R - 1e-9, 41):
+        assert sweep_lower(line, lp.pieces, R, 3.3, 2.0 + y, 0.0) == pytest.approx(-1.5 + lp.f(abs(y)), abs=1e-12)
+        if abs(y) > R - 1e-6:
+            continue  # at a ball's rim f' ~ 1e5: the arc's rounding of d (1e-15) is worth 1e-10 there
+        ang = 1.1
+        px, py = (7.0 + y) * math.cos(ang), (7.0 + y) * math.sin(ang)
+        assert sweep_lower(arc, lp.pieces, R, px, py, 0.0) == pytest.approx(-1.5 + lp.f(abs(y)), abs=1e-11)
+    # outside the footprint: nothing is removed; on its eps margin the edge's height holds
+    assert math.isinf(sweep_lower(line, lp.pieces, R, 0.0, 2.0 + R + 1e-7, 0.0))
+    assert sweep_lower(line, lp.pieces, R, 0.0, 2.0 + R + 1e-7, 1e-6) == pytest.approx(-1.5 + lp.f(R), abs=1e-12)
