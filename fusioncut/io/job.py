@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 from enum import Enum
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal, get_type_hints
@@ -289,26 +290,97 @@ def load_job(path: str | Path) -> tuple[Job, Path]:
         raise InputError("not accepted: the JSON nests too deeply", path) from None
 
 
-def with_run_options(job: Job, **overrides: object) -> Job:
-    """``job`` with the run options given (``None``: keep the job file's), validated like the file.
-
-    The command line's ``--workers`` and ``--scheduler`` come through here, so a bad value is refused
-    with the same one-line message as in a job file (``model_copy`` alone would not validate it).
-    """
-    unknown = set(overrides) - RUN_OPTIONS
-    if unknown:
-        raise ValueError(f"not run options: {', '.join(sorted(unknown))}")
-    given = {k: v for k, v in overrides.items() if v is not None}
-    if not given:
-        return job
+def make_options(values: Mapping[str, object], *, flags: bool = False) -> Options:
+    """Job options from ``values`` (the others at their defaults), validated like a job file: a bad
+    value is refused in one line naming it as ``options.<name>`` (``--<name>`` with ``flags``, for
+    the command line's options)."""
     try:
-        options = Options.model_validate({**job.options.model_dump(), **given})
+        return Options.model_validate(dict(values))
     except ValidationError as exc:
         first = exc.errors()[0]
         name = ".".join(str(p) for p in first["loc"])
         message = first["msg"].removeprefix("Value error, ")
-        raise InputError(f"--{name.replace('_', '-')}: {message}") from None
+        raise InputError(f"--{name.replace('_', '-')}: {message}" if flags else f"options.{name}: {message}") from None
+
+
+def with_options(job: Job, overrides: Mapping[str, object], *, flags: bool = False) -> Job:
+    """``job`` with the options given (``None``: keep the job file's), validated like the file
+    (:func:`make_options`; ``model_copy`` alone would not validate them)."""
+    given = {k: v for k, v in overrides.items() if v is not None}
+    if not given:
+        return job
+    options = make_options({**job.options.model_dump(), **given}, flags=flags)
     return job.model_copy(update={"options": options})
+
+
+def with_run_options(job: Job, **overrides: object) -> Job:
+    """``job`` with the run options given (``None``: keep the job file's), validated like the file:
+    the command line's ``--workers`` and ``--scheduler`` come through here."""
+    unknown = set(overrides) - RUN_OPTIONS
+    if unknown:
+        raise ValueError(f"not run options: {', '.join(sorted(unknown))}")
+    return with_options(job, overrides, flags=True)
+
+
+def job_options(options: EngineOptions | Mapping[str, object] | None) -> dict[str, object]:
+    """The job options of engine options (the fields a job states, enums as their values) or of a
+    mapping of option names (returned as given, for :func:`with_options` to validate)."""
+    if options is None:
+        return {}
+    if isinstance(options, EngineOptions):
+        values = {f.name: getattr(options, f.name) for f in engine_option_fields()}
+        return {k: v.value if isinstance(v, Enum) else v for k, v in values.items()}
+    return dict(options)
+
+
+def stock_entry(stock: str | Stock | None) -> StockSpec:
+    """The job's stock entry of a model stock or a :func:`fusioncut.io.stock.parse_stock` string
+    (paths made absolute); ``None`` or ``"infer"``: inferred from the toolpath."""
+    if stock is None or (isinstance(stock, str) and stock.strip().lower() == "infer"):
+        return StockSpec(kind="infer")
+    from fusioncut.io.stock import parse_stock
+
+    spec = stock_spec(parse_stock(stock) if isinstance(stock, str) else stock)
+    if spec.kind == "file":
+        spec = spec.model_copy(update={"path": str(Path(spec.path).absolute())})  # type: ignore[arg-type]
+    return spec
+
+
+def tool_entries(tools: str | Path | Mapping[int, MillingTool] | None) -> dict[str, object]:
+    """The job fields that give these tools: ``tools`` for ``{number: MillingTool}``, ``tool_library``
+    (absolute) for a tool library file; none for ``None``."""
+    if tools is None:
+        return {}
+    if isinstance(tools, Mapping):
+        return {"tools": [ToolSpec.of(t, n) for n, t in sorted(tools.items())]}
+    library = Path(tools).absolute()
+    if not library.is_file():
+        raise InputError("tool library not found", library)
+    return {"tool_library": str(library)}
+
+
+def program_job(program: str | Path, *, stock: str | Stock | None = None,
+                tools: str | Path | Mapping[int, MillingTool] | None = None,
+                options: EngineOptions | Mapping[str, object] | None = None, name: str | None = None) -> Job:
+    """The job that runs one toolpath file (any suffix :mod:`fusioncut.io.readers` reads), with
+    absolute paths so that it runs the same from any folder.
+
+    ``stock``: a model stock, a :func:`fusioncut.io.stock.parse_stock` string (``box:x0,y0,z0,x1,y1,z1``,
+    ``cylinder:...``, a STEP/BREP path, a ``.camotics`` project's bounds) or ``"infer"``; ``None``:
+    a CAMotics project's own workpiece when it states one, else inferred from the toolpath.
+    ``tools``: a tool library file or ``{number: MillingTool}``; ``None``: the program's own.
+    ``options``: engine (and run) options. ``name``: default the program's file name without suffix."""
+    path = Path(program).absolute()
+    if not path.is_file():
+        raise InputError("toolpath file not found", path)
+    if stock is None and path.suffix.lower() == ".camotics":
+        from fusioncut.io.tool_library import read_camotics_project
+
+        if read_camotics_project(path).stock is not None:
+            stock = str(path)
+    data: dict[str, object] = {"name": name or path.stem, "stock": stock_entry(stock), "toolpaths": [str(path)]}
+    data.update(tool_entries(tools))
+    return with_options(Job.model_validate(data), job_options(options))
 
 
 def build_stock(spec: StockSpec, base: Path) -> Stock | None:
