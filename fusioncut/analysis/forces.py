@@ -67,13 +67,16 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from fusioncut.errors import GeometryError, InputError, SourceLocation
 from fusioncut.model.engagement import AngleInterval, CLStatus, EngagementMap, SliceEngagement
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, SpindleDirection
+
+if TYPE_CHECKING:  # the force model itself needs no pandas; only results tables bring it
+    from fusioncut.io.results import Results
 
 _TWO_PI = 2.0 * math.pi
 _EPS = 1e-9
@@ -643,25 +646,50 @@ def _candidate_counts(parts: list) -> list[tuple[float, int]]:
     return sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))
 
 
-def engagement_maps_from_results(results: object, dz: float | None = None) -> list[EngagementMap]:
-    """Engagement maps rebuilt from loaded result tables (:func:`fusioncut.io.results.load_results`),
-    one per ``cl`` row, in table order, for the force model.
+def results_slice_height(results: Results, dz: float | None = None) -> float:
+    """The engine's slice height (mm) of ``results``: the recorded one (:attr:`Results.slice_height`).
+    ``dz`` (mm) is for folders written before it was recorded; given where it is recorded, it must
+    agree. An older folder without ``dz`` falls back to :func:`infer_slice_height`."""
+    if dz is not None and not (dz > 0 and math.isfinite(dz)):
+        raise InputError(f"slice height must be > 0 mm, got {dz}", results.path)
+    if results.slice_height is None:
+        return infer_slice_height(results) if dz is None else float(dz)
+    if dz is not None and abs(dz - results.slice_height) > 1e-9 * max(1.0, dz):
+        raise InputError(f"the results were computed with slice height {results.slice_height:g} mm, not {dz:g} mm "
+                         "(leave --slice-height out)", results.path)
+    return results.slice_height
 
-    The tables keep the engaged arcs of every slice but not the axial contact range nor the slice
-    height ``dz`` (mm; inferred by :func:`infer_slice_height` when not given). The range is rebuilt
-    from the engine's rule that a slice sits in the middle of the part of its cell in contact: the
-    lowest slice ``z0`` of cell ``k0`` gives the bottom ``2 z0 - (k0+1) dz`` (or the cell bottom when
-    it sits at the centre), the highest one the top ``2 z1 - k1 dz``; a CL with one engaged slice
-    gives ``z -/+ ap/2``. With the same ``dz`` :func:`compute_cl_forces` then rebuilds the engine's
-    bands exactly. Timings and non-engaged slices are not in the tables and are left out.
+
+def _axial_range(bands: np.ndarray, zs: list[float], ap: float, dz: float) -> tuple[float, float]:
+    """A CL's flute contact range (mm above the tip) from its slices' recorded bands (rows
+    ``[z_lo, z_hi]``: the range runs from the lowest band's bottom to the highest band's top, which
+    gives the engine's bands back exactly), or, for folders written before bands were recorded, from
+    the engine's slice rule inverted: the lowest slice ``z0`` of cell ``k0`` sits in the middle of
+    ``[max(k0 dz, a0), ...]``, so ``a0 = 2 z0 - (k0+1) dz`` when clipped, and alike at the top; a single
+    slice gives ``z -/+ ap/2``."""
+    if len(bands) and not np.isnan(bands).any():
+        return float(bands[:, 0].min()), float(bands[:, 1].max())
+    z0, z1 = zs[0], zs[-1]
+    if len(zs) == 1:
+        return z0 - 0.5 * ap, z0 + 0.5 * ap
+    k0, k1 = math.floor(z0 / dz + 1e-9), math.floor(z1 / dz + 1e-9)
+    return max(k0 * dz, 2 * z0 - (k0 + 1) * dz), min((k1 + 1) * dz, 2 * z1 - k1 * dz)
+
+
+def engagement_maps_from_results(results: Results, dz: float | None = None) -> list[EngagementMap]:
+    """Engagement maps rebuilt from loaded result tables (:func:`fusioncut.io.results.load_results`),
+    one per ``cl`` row, in table order, for the force model (pass the same slice height, see
+    :func:`results_slice_height`, to :func:`compute_cl_forces` to get the engine's bands back).
+
+    Each map's ``axial_range`` is rebuilt from its slices' recorded bands (:func:`_axial_range`; from
+    the slice rule and ``dz`` for older folders). Timings and non-engaged slices are not in the
+    tables and are left out.
     """
-    cl = results.cl  # type: ignore[attr-defined]
-    sl = results.slices  # type: ignore[attr-defined]
-    if dz is None:
-        dz = infer_slice_height(results)
-    if not (dz > 0 and math.isfinite(dz)):
-        raise InputError(f"slice height must be > 0 mm, got {dz}")
+    cl = results.cl
+    sl = results.slices
+    dz = results_slice_height(results, dz)
     by_cl: dict[int, list[SliceEngagement]] = {}
+    bands: dict[int, list[tuple[float, float]]] = {}
     if len(sl):
         sl = sl.sort_values(["cl", "z_tool_mm", "interval"], kind="stable")
         for (c, z), g in sl.groupby(["cl", "z_tool_mm"], sort=False):
@@ -669,18 +697,13 @@ def engagement_maps_from_results(results: object, dz: float | None = None) -> li
             first = g.iloc[0]
             by_cl.setdefault(int(c), []).append(SliceEngagement(
                 z=float(z), z_machine=float(first["z_machine_mm"]), radius=float(first["radius_mm"]), intervals=ivs))
+            bands.setdefault(int(c), []).append((float(first["z_lo_mm"]), float(first["z_hi_mm"])))
     out = []
     for row in cl.itertuples(index=False):
         slices = tuple(by_cl.get(int(row.cl), ()))
         axial = (0.0, 0.0)
         if slices:
-            z0, z1 = slices[0].z, slices[-1].z
-            if len(slices) == 1:
-                half = 0.5 * float(row.ap_mm)
-                axial = (z0 - half, z0 + half)
-            else:
-                k0, k1 = math.floor(z0 / dz + 1e-9), math.floor(z1 / dz + 1e-9)
-                axial = (max(k0 * dz, 2 * z0 - (k0 + 1) * dz), min((k1 + 1) * dz, 2 * z1 - k1 * dz))
+            axial = _axial_range(np.array(bands[int(row.cl)], dtype=float), [s.z for s in slices], float(row.ap_mm), dz)
         feed = None if math.isnan(row.feed_mm_min) else float(row.feed_mm_min)
         out.append(EngagementMap(
             cl_index=int(row.cl), position=(float(row.x), float(row.y), float(row.z)),
@@ -690,7 +713,7 @@ def engagement_maps_from_results(results: object, dz: float | None = None) -> li
             operation=str(row.operation), slices=slices, contact_area=float(row.contact_area_mm2),
             shank_contact_area=float(row.shank_contact_area_mm2), removed_volume=float(row.removed_volume_mm3),
             reason=str(row.reason), warnings=tuple(w for w in str(row.warnings).split(" | ") if w),
-            sweep_method=str(row.sweep_method), axial_range=axial,
+            sweep_method=str(row.sweep_method), axial_range=axial, rubbing_slices=int(row.rubbing_slices),
         ))
     return out
 
@@ -732,8 +755,6 @@ def forces_table(
     ``rpm`` is one spindle speed (rev/min) or one per map. Rapids, failed CLs, feed moves without a
     feed and CLs without a spindle speed get NaN forces (unknown, not zero); air CLs get zeros.
     """
-    import pandas as pd
-
     rpms = [rpm] * len(maps) if isinstance(rpm, (int, float)) else list(rpm)
     if len(rpms) != len(maps):
         raise InputError(f"{len(rpms)} spindle speeds for {len(maps)} CLs")
@@ -753,5 +774,52 @@ def forces_table(
             row.update(s)
             row["chip_peak_mm"] = peak_chip_thickness(emap, tool, f.feed_per_tooth, dz=dz)
         rows.append(row)
-    df = pd.DataFrame(rows, columns=names)
+    return _force_frame(rows)
+
+
+def _force_frame(rows: list[dict[str, object]]):  # -> pandas.DataFrame
+    import pandas as pd
+
+    df = pd.DataFrame(rows, columns=[c[0] for c in FORCE_COLUMNS])
     return df.astype({"cl": "int64", "line": "int64", "file": "string", "operation": "string", "status": "string"})
+
+
+def forces_from_results(
+    results: Results,
+    coefficients: CuttingCoefficients,
+    *,
+    rpm: float | None = None,
+    tools: dict[str, MillingTool] | None = None,
+    dz: float | None = None,
+    samples: int = 360,
+):  # -> pandas.DataFrame
+    """Per-CL force table (:func:`forces_table`, rows in ``cl`` table order) of a results folder with
+    what it records, no program needed: each CL's tool (:attr:`Results.tools` by the ``tool`` label),
+    the program's spindle speed at its move (``spindle_rpm``), the slice height and the slices' bands.
+
+    ``rpm`` (rev/min) replaces every recorded speed; ``tools`` (label -> tool) replaces recorded tools
+    (e.g. another flute count); ``dz`` (mm) is only for folders that do not record the slice height
+    (:func:`results_slice_height`). A folder that does not record the speeds needs ``rpm``; a tool
+    without a full record needs ``tools``: both are :class:`InputError` naming the folder. CLs whose
+    move had no spindle speed programmed get NaN forces (unknown).
+    """
+    import pandas as pd
+
+    if rpm is None and "spindle_rpm" in results.missing:
+        raise InputError("the spindle speeds are not recorded (results written before they were): give the "
+                         "spindle speed (--rpm)", results.path)
+    dz = results_slice_height(results, dz)
+    maps = engagement_maps_from_results(results, dz)
+    recorded = results.cl["spindle_rpm"].to_numpy(dtype=float)
+    rpms = [float(rpm) if rpm is not None else None if math.isnan(n) else float(n) for n in recorded]
+    groups: dict[str, list[int]] = {}
+    for i, m in enumerate(maps):
+        groups.setdefault(m.tool, []).append(i)
+    parts = []
+    for label, idx in groups.items():
+        tool = (tools or {}).get(label) or results.tool(label)
+        part = forces_table([maps[i] for i in idx], tool, coefficients, [rpms[i] for i in idx], dz=dz,
+                            samples=samples)
+        part.index = idx
+        parts.append(part)
+    return pd.concat(parts).sort_index() if parts else _force_frame([])

@@ -14,6 +14,7 @@ air, adaptive passes), the results written and read back, and then:
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import pickle
@@ -31,12 +32,15 @@ import typer
 from typer.testing import CliRunner
 
 from fusioncut.analysis.feed import FeedLimit, advise_feeds
-from fusioncut.analysis.forces import compute_cl_forces, engagement_maps_from_results, infer_slice_height
+from fusioncut.analysis.forces import (
+    compute_cl_forces, engagement_maps_from_results, forces_from_results, forces_table,
+)
 from fusioncut.analysis.materials import AL7075_T6_CARBIDE as K
 from fusioncut.cli import forces as forces_cli
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.segments import cl_segments
+from fusioncut.errors import InputError
 from fusioncut.io.gcode import read_gcode
 from fusioncut.io.results import ResultWriter, load_results
 from fusioncut.io.stock import infer_stock
@@ -58,9 +62,9 @@ def _run(moves: int | None, out: Path):
     opts = EngineOptions(slice_height=SLICE)
     segments = cl_segments(tp.moves, opts.max_segment_length, opts.chord_tolerance)
     maps = []
-    with ResultWriter(out, tools={"T1": {"kind": "flat", "diameter_mm": 2.65, "flute_length_mm": 12.55}}) as w:
+    with ResultWriter(out, tools={t.label: t for t in tp.tools.values()}, options=opts) as w:
         for m, seg in zip(BRepEngine(opts).run(tp, stock), segments):
-            w.add(m, length_mm=seg.length)
+            w.add(m, length_mm=seg.length, spindle_rpm=seg.spindle_rpm)
             maps.append(m)
     return full, maps
 
@@ -132,7 +136,7 @@ def test_forces_from_saved_tables_equal_forces_from_engine_maps(run):
     full, maps, out = run
     tool = full.tools[1]
     results = load_results(out)
-    assert infer_slice_height(results) == SLICE
+    assert results.slice_height == SLICE and results.missing == {}
     rebuilt = engagement_maps_from_results(results)
     assert len(rebuilt) == len(maps)
     compared = 0
@@ -147,6 +151,52 @@ def test_forces_from_saved_tables_equal_forces_from_engine_maps(run):
         np.testing.assert_allclose(fb.mean_machine_frame, fa.mean_machine_frame, rtol=1e-9, atol=1e-9)
         compared += 1
     assert compared > 50
+
+
+def test_forces_of_a_results_folder_need_no_program(run):
+    """Differential: the forces of the results folder alone (tools, spindle speeds, slice height and
+    bands from the folder) equal the forces of the engine's own maps with the program's tool and S
+    words, CL by CL, to the last bits the tables' float round trip allows."""
+    full, maps, out = run
+    results = load_results(out)
+    alone = forces_from_results(results, K)
+    rpm_at = {m.source.line: m.spindle_rpm for m in full.moves}
+    live = forces_table(maps, full.tools[1], K, [rpm_at[m.source.line] for m in maps], dz=SLICE)
+    assert (alone["rpm"].dropna() == RPM).all() and alone["resultant_peak_N"].notna().sum() > 50
+    pd.testing.assert_frame_equal(alone.reset_index(drop=True), live, rtol=1e-12, atol=1e-9)
+
+
+def _as_older_folder(results: Path, tmp_path: Path) -> Path:
+    """A copy of ``results`` as FusionCut wrote it before it kept the slice height, the engine options,
+    full tool records, spindle speeds and slice bands."""
+    out = _copy(results, tmp_path)
+    meta = json.loads((out / "metadata.json").read_text())
+    del meta["engine_options"], meta["slice_height_mm"]
+    meta["tools"] = {label: {k: t[k] for k in ("kind", "diameter_mm", "flute_length_mm")}
+                     for label, t in meta["tools"].items()}
+    (out / "metadata.json").write_text(json.dumps(meta))
+    for name, drop in (("cl", ["spindle_rpm"]), ("slices", ["z_lo_mm", "z_hi_mm"])):
+        table = pq.read_table(out / f"{name}.parquet").drop(drop)
+        pq.write_table(table.replace_schema_metadata({b"fusioncut": json.dumps(meta).encode()}), out / f"{name}.parquet")
+        pd.read_csv(out / f"{name}.csv", dtype=str, keep_default_na=False).drop(columns=drop).to_csv(
+            out / f"{name}.csv", index=False)
+    return out
+
+
+def test_forces_of_an_older_folder_need_what_it_lacks(run, tmp_path):
+    """An older folder names what it lacks (spindle speeds, the tool) instead of guessing; given them
+    and the slice height, its bands rebuilt by the slice rule give the same forces as a new folder's."""
+    full, _, out = run
+    old = load_results(_as_older_folder(out, tmp_path))
+    with pytest.raises(InputError, match=r"spindle speeds are not recorded.*--rpm"):
+        forces_from_results(old, K)
+    with pytest.raises(InputError, match=r"tool T1: metadata.json has no full record of it"):
+        forces_from_results(old, K, rpm=RPM, dz=SLICE)
+    got = forces_from_results(old, K, rpm=RPM, tools={"T1": full.tools[1]}, dz=SLICE)
+    want = forces_from_results(load_results(out), K, rpm=RPM)
+    pd.testing.assert_frame_equal(got, want, rtol=1e-12, atol=1e-9)
+    with pytest.raises(InputError, match="computed with slice height 1 mm, not 0.5 mm"):
+        forces_from_results(load_results(out), K, dz=0.5)
 
 
 def textbook_slot_mean(n: int, a: float, c: float) -> np.ndarray:
