@@ -1,4 +1,11 @@
-"""``fusioncut demo``, ``fusioncut run JOB.json`` and ``fusioncut schema``.
+"""``fusioncut demo``, ``fusioncut run JOB.json | PROGRAM`` and ``fusioncut schema``.
+
+``run`` takes a job file or a toolpath file (G-code, APT/CLSF, Fusion JSON, CAMotics project); a
+toolpath file runs as the job :func:`fusioncut.io.job.program_job` makes of it (``--stock``,
+``--stock-top``, ``--tools``), written as ``job.json`` into the results folder so that
+``fusioncut run OUT/job.json`` repeats it. One flag per job engine option (``--slice-height``,
+``--sweep``, ...) is generated from :class:`~fusioncut.engines.base.EngineOptions` and overrides the
+job's value.
 
 Both runs show one progress bar per operation (CLs done, CL/s, time left) and one for the whole
 program, write a log (``--log-file``, default ``<out>/fusioncut.log``; ``--log-level debug`` records
@@ -10,6 +17,7 @@ every CL with its source ``file:line``, status, sweep method and timings) and, u
 """
 from __future__ import annotations
 
+import inspect
 import json
 import logging
 import time
@@ -17,7 +25,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from enum import Enum
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional, get_args, get_origin
 
 import typer
 from rich.console import Console
@@ -154,8 +162,56 @@ WORKERS_HELP = ("run on an embedded Dask cluster of N worker processes, each own
 MAX_CLS_HELP = ("refuse a job that makes more CL segments than this (counted from its moves before anything "
                 "is expanded)")
 MAX_SLICES_HELP = "refuse a job that evaluates more slices (per CL: flute length / slice_height) than this"
+SOURCE_HELP = ("job JSON (see `fusioncut schema`), or a toolpath file: G-code (.nc .ngc .tap ...), APT/CLSF "
+               "(.apt .cls), Fusion JSON post (.json), CAMotics project (.camotics)")
+TOOLS_HELP = "tool library (.json, .tools, .tbl) in place of the job's; a program's own tools fill the gaps"
+STOCK_HELP = ("stock in place of the job's: box:x0,y0,z0,x1,y1,z1 or cylinder:cx,cy,cz,radius,height (mm), a "
+              ".step/.stp/.brep file, a .camotics project's workpiece, or infer (the default for a program)")
+STOCK_TOP_HELP = ("the top of the inferred stock (mm, machine z): give it when the program does not show it, "
+                  "as a facing pass at z = 0 does not")
 SCHEDULER_HELP = ("run on every worker of a running Dask scheduler (e.g. tcp://host:8786); wins over "
                   "--workers; overrides the job's options.scheduler")
+
+
+def _flag_value(name: str, value: object) -> object:
+    """A generated option flag's value as the job's validation takes it: ``none``/``null`` for an
+    option whose ``None`` means something, comma-separated numbers for a list."""
+    if isinstance(value, str) and value.strip().lower() in ("none", "null"):
+        return None if name in _OPTIONAL else value
+    return value
+
+
+_OPTIONAL: set[str] = set()  # names of the engine options that take None
+
+
+def _with_engine_flags(command: Callable[..., None]) -> None:
+    """Give ``command`` (whose ``**engine_options`` takes them) one flag per job engine option,
+    generated from :class:`~fusioncut.engines.base.EngineOptions` (help and default from its fields):
+    ``--slice-height 0.5``, ``--sweep sampled``, ``--cell-size none``. A flag not given keeps the
+    job's value; the job's validation refuses a bad one naming the flag."""
+    from fusioncut.io.job import engine_option_fields
+
+    signature = inspect.signature(command)
+    params = [p for p in signature.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    annotations = {p.name: p.annotation for p in params}
+    for f in engine_option_fields():
+        flag = "--" + f.name.replace("_", "-")
+        default = getattr(f.default, "value", f.default)
+        choices = get_args(f.type) if get_origin(f.type) is Literal else ()
+        optional = type(None) in get_args(f.type)
+        if optional:
+            _OPTIONAL.add(f.name)
+        text = f"{f.help} (default: {'none' if default is None else default})".lstrip()
+        if f.type is bool:
+            option, annotation = typer.Option(None, f"{flag}/--no-{flag[2:]}", help=text), Optional[bool]
+        else:
+            metavar = "|".join(choices) if choices else ("NUMBER|none" if optional else "NUMBER")
+            option, annotation = typer.Option(None, flag, metavar=metavar, help=text), Optional[str]
+        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option,
+                                        annotation=annotation))
+        annotations[f.name] = annotation
+    command.__signature__ = signature.replace(parameters=params)  # type: ignore[attr-defined]
+    command.__annotations__ = {**annotations, "return": None}
 
 
 def register(app: typer.Typer) -> None:
@@ -185,12 +241,13 @@ def register(app: typer.Typer) -> None:
                                                              **cb))
         _print_summary(result)
 
-    @app.command()
-    @friendly_errors
-    def run(job_file: Path = typer.Argument(..., help="job JSON (see `fusioncut schema`)"),
+    def run(source: Path = typer.Argument(..., metavar="JOB_OR_PROGRAM", help=SOURCE_HELP),
             out: Path = typer.Option(None, help="results folder (default: fusioncut-out/<job name>)"),
             fresh: bool = typer.Option(False, "--fresh",
                                        help="start over, ignoring a checkpoint of an interrupted run"),
+            tools: Optional[Path] = typer.Option(None, "--tools", metavar="LIBRARY", help=TOOLS_HELP),
+            stock: Optional[str] = typer.Option(None, "--stock", metavar="SPEC", help=STOCK_HELP),
+            stock_top: Optional[float] = typer.Option(None, "--stock-top", metavar="Z", help=STOCK_TOP_HELP),
             log_file: Optional[Path] = typer.Option(None, help=LOG_FILE_HELP),
             log_level: LogLevel = typer.Option(LogLevel.info, case_sensitive=False, help=LOG_LEVEL_HELP),
             ipw_export: bool = typer.Option(True, "--ipw-export/--no-ipw-export", help=IPW_HELP),
@@ -200,21 +257,46 @@ def register(app: typer.Typer) -> None:
                                                     help=SCHEDULER_HELP),
             max_cls: int = typer.Option(Budget.max_cls, "--max-cls", min=1, metavar="N", help=MAX_CLS_HELP),
             max_slices: int = typer.Option(Budget.max_slices, "--max-slices", min=1, metavar="N",
-                                           help=MAX_SLICES_HELP)) -> None:
-        """Run a job file; an interrupted run of the same job continues from its checkpoint."""
-        from fusioncut.io.job import load_job, with_run_options
+                                           help=MAX_SLICES_HELP),
+            **engine_options: Optional[str]) -> None:
+        """Run a job file, or a toolpath file without one; an interrupted run of the same job
+        continues from its checkpoint.
+
+        A toolpath file (G-code, APT/CLSF, Fusion JSON, CAMotics project) is run as a job of its own
+        (stock inferred unless --stock, the program's tools unless --tools), written as job.json into
+        the results folder: `fusioncut run OUT/job.json` runs it again."""
+        from fusioncut.api import JOB_FILE
+        from fusioncut.io.job import load_job, program_job, with_inputs, with_run_options
+        from fusioncut.io.readers import is_job_file
         from fusioncut.runner import run_job
 
-        job, base = load_job(job_file)
+        if stock_top is not None:
+            if stock not in (None, "infer"):
+                raise typer.BadParameter("--stock-top states the top of an inferred stock, not of --stock " + stock)
+            stock = {"kind": "infer", "top": stock_top}  # type: ignore[assignment]
+        given = {name: _flag_value(name, value) for name, value in engine_options.items() if value is not None}
+        if is_job_file(source):
+            job, base = load_job(source)
+            job = with_inputs(job, stock=stock, tools=tools, options=given, flags=True)
+            write_job = False
+        else:
+            job = with_inputs(program_job(source, stock=stock, tools=tools), options=given, flags=True)
+            base, write_job = Path.cwd(), True
         # run options: they change neither the job hash nor the results, so a resume still matches
         job = with_run_options(job, workers=workers, scheduler=scheduler)
         out = out or Path("fusioncut-out") / job.name
+        if write_job:
+            out.mkdir(parents=True, exist_ok=True)
+            (out / JOB_FILE).write_text(job.model_dump_json(indent=2), encoding="utf-8")
         # a resumed run appends to the log of the run it continues
         with _logging(log_file or out / "fusioncut.log", log_level, append=not fresh):
             budget = Budget(max_cls=max_cls, max_slices=max_slices)
             result = _run_with_progress(lambda **cb: run_job(job, base, out, resume=not fresh,
                                                              export_ipw=ipw_export, budget=budget, **cb))
         _print_summary(result)
+
+    _with_engine_flags(run)
+    app.command()(friendly_errors(run))
 
     @app.command()
     def schema() -> None:

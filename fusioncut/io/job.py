@@ -333,11 +333,17 @@ def job_options(options: EngineOptions | Mapping[str, object] | None) -> dict[st
     return dict(options)
 
 
-def stock_entry(stock: str | Stock | None) -> StockSpec:
-    """The job's stock entry of a model stock or a :func:`fusioncut.io.stock.parse_stock` string
-    (paths made absolute); ``None`` or ``"infer"``: inferred from the toolpath."""
+def stock_entry(stock: str | Stock | StockSpec | Mapping[str, object] | None) -> StockSpec:
+    """The job's stock entry of a model stock, a :func:`fusioncut.io.stock.parse_stock` string (paths
+    made absolute) or a job's stock entry (a :class:`StockSpec` or its JSON, validated); ``None`` or
+    ``"infer"``: inferred from the toolpath."""
     if stock is None or (isinstance(stock, str) and stock.strip().lower() == "infer"):
         return StockSpec(kind="infer")
+    if isinstance(stock, (StockSpec, Mapping)):
+        try:
+            return StockSpec.model_validate(stock)
+        except ValidationError as exc:
+            raise InputError(f"stock: {exc.errors()[0]['msg'].removeprefix('Value error, ')}") from None
     from fusioncut.io.stock import parse_stock
 
     spec = stock_spec(parse_stock(stock) if isinstance(stock, str) else stock)
@@ -359,14 +365,15 @@ def tool_entries(tools: str | Path | Mapping[int, MillingTool] | None) -> dict[s
     return {"tool_library": str(library)}
 
 
-def program_job(program: str | Path, *, stock: str | Stock | None = None,
+def program_job(program: str | Path, *, stock: str | Stock | StockSpec | Mapping[str, object] | None = None,
                 tools: str | Path | Mapping[int, MillingTool] | None = None,
                 options: EngineOptions | Mapping[str, object] | None = None, name: str | None = None) -> Job:
     """The job that runs one toolpath file (any suffix :mod:`fusioncut.io.readers` reads), with
     absolute paths so that it runs the same from any folder.
 
     ``stock``: a model stock, a :func:`fusioncut.io.stock.parse_stock` string (``box:x0,y0,z0,x1,y1,z1``,
-    ``cylinder:...``, a STEP/BREP path, a ``.camotics`` project's bounds) or ``"infer"``; ``None``:
+    ``cylinder:...``, a STEP/BREP path, a ``.camotics`` project's bounds), ``"infer"`` or a job's stock
+    entry (``{"kind": "infer", "top": 1.0}``); ``None``:
     a CAMotics project's own workpiece when it states one, else inferred from the toolpath.
     ``tools``: a tool library file or ``{number: MillingTool}``; ``None``: the program's own.
     ``options``: engine (and run) options. ``name``: default the program's file name without suffix."""
@@ -381,6 +388,23 @@ def program_job(program: str | Path, *, stock: str | Stock | None = None,
     data: dict[str, object] = {"name": name or path.stem, "stock": stock_entry(stock), "toolpaths": [str(path)]}
     data.update(tool_entries(tools))
     return with_options(Job.model_validate(data), job_options(options))
+
+
+def with_inputs(job: Job, *, stock: str | Stock | StockSpec | Mapping[str, object] | None = None,
+                tools: str | Path | Mapping[int, MillingTool] | None = None,
+                options: EngineOptions | Mapping[str, object] | None = None, flags: bool = False) -> Job:
+    """``job`` with this stock (:func:`stock_entry`) and tool library in place of its own, these tools
+    by number added to its own (replacing those of the same number) and these options merged into its
+    own (:func:`with_options`); ``None`` keeps the job's."""
+    update: dict[str, Any] = tool_entries(tools)
+    if "tools" in update:
+        numbers = {t.number for t in update["tools"]}
+        update["tools"] += [t for t in job.tools if t.number not in numbers]
+    if stock is not None:
+        update["stock"] = stock_entry(stock)
+    if update:
+        job = job.model_copy(update=update)
+    return with_options(job, job_options(options), flags=flags)
 
 
 def build_stock(spec: StockSpec, base: Path) -> Stock | None:
