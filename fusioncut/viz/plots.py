@@ -90,12 +90,19 @@ def _cl_facts(row: pd.Series) -> str:
     return ", ".join(facts)
 
 
-def _slice_height(z: np.ndarray) -> float:
-    """Drawing thickness (mm) of one slice: most of the gap between neighbouring slices."""
-    u = np.unique(z)
-    if len(u) > 1:
-        return 0.8 * float(np.min(np.diff(u)))
-    return max(0.1, 0.1 * abs(float(u[0]))) if len(u) else 0.1
+def _extents(sl: pd.DataFrame, col: str) -> tuple[np.ndarray, np.ndarray]:
+    """Drawn extent ``(lo, hi)`` (mm) of each slice row along ``col``. Heights (``z_tool_mm``) span the
+    slice's recorded band ``[z_lo_mm, z_hi_mm]``; radii, and heights of folders that do not record the
+    bands, get a thin mark centred on the value (4 % of the largest value, at least 0.05 mm), which
+    shows where the slice is without claiming how far it reaches."""
+    v = sl[col].to_numpy(dtype=float)
+    half = 0.5 * max(0.05, 0.04 * float(np.abs(v).max(initial=0.0)))
+    lo, hi = v - half, v + half
+    if col == "z_tool_mm":
+        known = sl["z_lo_mm"].notna().to_numpy() & sl["z_hi_mm"].notna().to_numpy()
+        lo = np.where(known, sl["z_lo_mm"].to_numpy(dtype=float), lo)
+        hi = np.where(known, sl["z_hi_mm"].to_numpy(dtype=float), hi)
+    return lo, hi
 
 
 def _wrapped(entry: float, exit_: float) -> list[tuple[float, float]]:
@@ -141,12 +148,12 @@ def plot_engagement_map(
             ha="center", va="top", fontsize=8, color="0.45")
 
     if len(sl):
-        z = sl["z_tool_mm"].to_numpy()
-        h = _slice_height(z)
-        for zi, entry, exit_ in zip(z, sl["entry_deg"], sl["exit_deg"]):
-            ax.broken_barh(_wrapped(float(entry), float(exit_)), (zi - h / 2, h),
+        lo, hi = _extents(sl, "z_tool_mm")
+        for z0, z1, entry, exit_ in zip(lo, hi, sl["entry_deg"], sl["exit_deg"]):
+            ax.broken_barh(_wrapped(float(entry), float(exit_)), (z0, z1 - z0),
                            facecolors=ARC_COLOR, edgecolors="none", alpha=0.85)
-        ax.set_ylim(max(0.0, float(z.min()) - h), float(z.max()) + h)
+        margin = 0.5 * float(np.max(hi - lo))
+        ax.set_ylim(max(0.0, float(lo.min()) - margin), float(hi.max()) + margin)
     else:
         _no_data(ax, f"no contact (status: {row['status']})")
         ax.set_ylim(0, 1)
@@ -195,22 +202,21 @@ def plot_polar(
     rcol = "z_tool_mm" if radial == "z" else "radius_mm"
     r_max = 1.0
     if len(sl):
-        r = sl[rcol].to_numpy()
-        h = _slice_height(r)
-        r_max = float(r.max()) + h
+        lo, hi = _extents(sl, rcol)
+        r_max = float(hi.max()) + 0.5 * float(np.max(hi - lo))
         # colour: the arc's engaged angle in degrees, on a fixed 0-180 scale (a plunge's 360 at the
         # top); the radius already tells the height, and a fixed scale never degenerates
         norm = Normalize(0.0, POLAR_SPAN_MAX_DEG, clip=True)
         cmap = colormaps["viridis"]
-        for (_, s), ri in zip(sl.iterrows(), r):
+        for (_, s), r0, r1 in zip(sl.iterrows(), lo, hi):
             span = float(s["exit_machine_deg"] - s["entry_machine_deg"])
-            ax.bar(math.radians(float(s["entry_machine_deg"]) + span / 2), h, width=math.radians(span),
-                   bottom=ri - h / 2, color=cmap(norm(span)), edgecolor="none", alpha=0.9)
+            ax.bar(math.radians(float(s["entry_machine_deg"]) + span / 2), r1 - r0, width=math.radians(span),
+                   bottom=r0, color=cmap(norm(span)), edgecolor="none", alpha=0.9)
             # where the tooth really enters/leaves depends on the spindle sense: go through the
             # immersion angles rather than guessing from the counter-clockwise machine bounds
             for phi, color in ((s["entry_deg"], ENTRY_COLOR), (s["exit_deg"], EXIT_COLOR)):
                 a = math.radians(machine_from_immersion(float(phi), feed_angle, spindle))
-                ax.plot([a, a], [ri - h / 2, ri + h / 2], color=color, lw=1.6)
+                ax.plot([a, a], [r0, r1], color=color, lw=1.6)
         cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.7, pad=0.1, extend="max")
         cb.set_ticks(np.arange(0.0, POLAR_SPAN_MAX_DEG + 1, 45.0))
         cb.set_ticklabels([f"{d:.0f}°" for d in np.arange(0.0, POLAR_SPAN_MAX_DEG + 1, 45.0)])
@@ -327,11 +333,9 @@ def engaged_span_grid(
     columns: CL index); cells without contact are 0. Every CL gets its own column unless there are
     more than ``max_columns``; then neighbouring CLs share one and a cell holds the largest span.
 
-    A slice stands for the band of heights half-way to its neighbours. The bands are computed per
-    CL, because CLs of different tools or depths are sliced at different heights (one shared list of
-    slice heights would paint every CL as stripes). Only engaged slices are stored, so the band
-    half-height is half the CL's smallest gap between slices (a gap between two engaged slices can
-    hide unengaged ones), or the median of that over all CLs for a CL with a single slice.
+    A slice fills the rows whose centres lie in its recorded band ``[z_lo_mm, z_hi_mm]``, and at
+    least the row holding its height; rows are as tall as the thinnest band (at most ``max_rows``
+    rows). Slices of folders that do not record the bands fill only the row holding their height.
     """
     cls = results.cl["cl"].to_numpy()
     sl = results.slices
@@ -344,17 +348,17 @@ def engaged_span_grid(
         return x_edges, np.array([0.0, 1.0]), np.zeros((1, n_x))
 
     ps = (sl.assign(span=sl["exit_deg"] - sl["entry_deg"])
-          .groupby(["cl", "z_tool_mm"], as_index=False)["span"].sum()
-          .sort_values(["cl", "z_tool_mm"]))
-    gap = ps.groupby("cl")["z_tool_mm"].diff()
-    min_gap = gap.groupby(ps["cl"]).transform("min")
-    fallback = float(gap.groupby(ps["cl"]).min().median()) if gap.notna().any() else 0.2
-    half = 0.5 * min_gap.fillna(fallback).to_numpy()
-    z = ps["z_tool_mm"].to_numpy()
-    z_lo, z_hi = z - half, z + half
+          .groupby(["cl", "z_tool_mm"], as_index=False)
+          .agg(span=("span", "sum"), z_lo=("z_lo_mm", "first"), z_hi=("z_hi_mm", "first")))
+    z = ps["z_tool_mm"].to_numpy(dtype=float)
+    z_lo, z_hi = ps["z_lo"].fillna(ps["z_tool_mm"]).to_numpy(), ps["z_hi"].fillna(ps["z_tool_mm"]).to_numpy()
 
     bottom, top = float(z_lo.min()), float(z_hi.max())
-    n_rows = int(min(max_rows, max(1, math.ceil((top - bottom) / max(float(half.min()), 1e-9)))))
+    if top - bottom < 1e-9:
+        bottom, top = bottom - 0.5, top + 0.5
+    thick = z_hi - z_lo
+    finest = float(thick[thick > 1e-9].min()) if (thick > 1e-9).any() else (top - bottom) / max_rows
+    n_rows = int(min(max_rows, max(1, math.ceil((top - bottom) / finest - 1e-9))))
     z_edges = np.linspace(bottom, top, n_rows + 1)
     dz = (top - bottom) / n_rows
     # rows whose centre lies in the band; at least the row holding z itself, so that a band

@@ -12,6 +12,7 @@ from matplotlib.colors import to_rgba
 from typer.testing import CliRunner
 
 from fusioncut.cli import plot as plot_cli
+from fusioncut.engines.base import EngineOptions
 from fusioncut.errors import FusionCutError, SourceLocation
 from fusioncut.io.results import ResultWriter, load_results
 from fusioncut.model import AngleInterval, CLStatus, EngagementMap, SliceEngagement, SpindleDirection
@@ -27,15 +28,21 @@ from fusioncut.viz.plots import (
 )
 
 
-def em(i: int, intervals, *, op: str, n: int = 4, dz: float = 0.5, status=CLStatus.ENGAGED,
+DZ = 0.5  # the run's slice height, mm
+
+
+def em(i: int, intervals, *, op: str, top: float = 2.0, status=CLStatus.ENGAGED,
        spindle=SpindleDirection.CW, feed_angle: float = 0.0) -> EngagementMap:
-    sl = tuple(SliceEngagement(z=dz * (k + 0.5), z_machine=-5 + dz * (k + 0.5), radius=4.0,
-                               intervals=tuple(AngleInterval(a, b) for a, b in intervals or ())) for k in range(n))
+    """A map as the engine slices it: contact 0 .. ``top`` mm, a slice in the middle of each band
+    [k, k+1) * DZ clipped to the contact (``top`` 1.8: the last band is 1.5 .. 1.8, its slice at 1.65)."""
+    bands = [(k * DZ, min((k + 1) * DZ, top)) for k in range(math.ceil(top / DZ - 1e-9))]
+    sl = tuple(SliceEngagement(z=0.5 * (lo + hi), z_machine=-5 + 0.5 * (lo + hi), radius=4.0,
+                               intervals=tuple(AngleInterval(a, b) for a, b in intervals or ())) for lo, hi in bands)
     return EngagementMap(
         cl_index=i, position=(float(i), 0.0, -5.0), start=(i - 1.0, 0.0, -5.0), tool="T3", spindle=spindle,
         feed_angle=feed_angle, status=status, source=SourceLocation("job/part.nc", 40 + i, 1), feed=500.0,
         operation=op, slices=sl if intervals else (), removed_volume=0.5 if intervals else 0.0,
-        axial_range=(0.0, n * dz) if intervals else (0.0, 0.0),
+        axial_range=(0.0, top) if intervals else (0.0, 0.0),
     )
 
 
@@ -45,9 +52,9 @@ def results_dir(tmp_path_factory):
     ems = [em(0, None, op="rough", status=CLStatus.RAPID)]
     ems += [em(i, [(0.0, 60.0)], op="rough") for i in range(1, 6)]  # up-milling, 4 slices 0.5 mm apart
     ems += [em(6, None, op="rough", status=CLStatus.FAILED)]
-    ems += [em(i, [(330.0, 370.0)], op="finish", n=8, dz=0.25, spindle=SpindleDirection.CCW, feed_angle=90.0)
+    ems += [em(i, [(330.0, 370.0)], op="finish", top=1.8, spindle=SpindleDirection.CCW, feed_angle=90.0)
             for i in range(7, 10)]
-    with ResultWriter(d, batch_size=4) as w:
+    with ResultWriter(d, batch_size=4, options=EngineOptions(slice_height=DZ)) as w:
         for e in ems:
             w.add(e)
     return d
@@ -116,10 +123,12 @@ def test_polar_entry_exit_in_machine_frame(results):
     ax = plot_polar(results, 8).axes[0]
     assert all(np.allclose(x, math.radians(330.0)) for x in _lines_of_color(ax, ENTRY_COLOR))
     assert all(np.allclose(x, math.radians(10.0)) for x in _lines_of_color(ax, EXIT_COLOR))
-    # the engaged arcs: 8 slices, each a 40 deg bar centred on machine 350 deg
+    # the engaged arcs: 4 slices, each a 40 deg bar centred on machine 350 deg, a ring over its band
     bars = [p for p in ax.patches if p.get_width() > 0]
-    assert len(bars) == 8
+    assert len(bars) == 4
     assert all(math.isclose(p.get_width(), math.radians(40.0)) for p in bars)
+    rings = sorted((round(p.get_y(), 12), round(p.get_y() + p.get_height(), 12)) for p in bars)
+    assert rings == [(0.0, 0.5), (0.5, 1.0), (1.0, 1.5), (1.5, 1.8)]
 
 
 def test_polar_true_radius_view(results):
@@ -133,9 +142,13 @@ def test_polar_true_radius_view(results):
 def test_engagement_map_wraps_arcs_past_360(results):
     ax = plot_engagement_map(results, 8).axes[0]
     pieces = sorted(tuple(map(float, seg)) for coll in ax.collections for seg in _barh_segments(coll))
-    # (330, 370) is drawn as 330..360 and 0..10 on each of the 8 slices
-    assert pieces.count((0.0, 10.0)) == 8 and pieces.count((330.0, 30.0)) == 8
+    # (330, 370) is drawn as 330..360 and 0..10 on each of the 4 slices
+    assert pieces.count((0.0, 10.0)) == 4 and pieces.count((330.0, 30.0)) == 4
     assert ax.get_xlim() == (0.0, 360.0)
+    # each bar covers its slice's band: the clipped top band 1.5 .. 1.8 mm too
+    heights = sorted({(round(float(p.vertices[:, 1].min()), 12), round(float(p.vertices[:, 1].max()), 12))
+                      for coll in ax.collections for p in coll.get_paths()})
+    assert heights == [(0.0, 0.5), (0.5, 1.0), (1.0, 1.5), (1.5, 1.8)]
 
 
 def _barh_segments(coll):
@@ -150,11 +163,12 @@ def test_heatmap_grid_values(results):
     col = lambda cl: int(np.searchsorted(x_edges, cl) - 1)  # noqa: E731
     assert grid[:, col(0)].max() == 0 and grid[:, col(6)].max() == 0  # rapid and failed: no contact
     assert grid[:, col(3)].max() == 60.0 and grid[:, col(8)].max() == 40.0
-    # CL 3 is engaged over its 4 slices of 0.5 mm (z 0..2), CL 8 over 8 slices of 0.25 mm (z 0..2)
+    # CL 3 is engaged over its 4 bands (z 0..2), CL 8 over 0..1.8 (its top band clipped to 1.5..1.8)
     centres = 0.5 * (z_edges[1:] + z_edges[:-1])
     assert z_edges[0] == pytest.approx(0.0) and z_edges[-1] == pytest.approx(2.0)
-    assert (grid[:, col(3)] == 60.0).all() and (grid[:, col(8)] == 40.0).all()
-    assert len(centres) >= 8  # fine enough for the finer slicing
+    assert len(centres) >= 2.0 / 0.3  # rows as fine as the thinnest band
+    assert (grid[:, col(3)] == 60.0).all()
+    np.testing.assert_array_equal(grid[:, col(8)], np.where(centres < 1.8, 40.0, 0.0))
     # binned: 10 CLs into 3 columns keep the largest span of each
     x3, _, g3 = engaged_span_grid(results, max_columns=3)
     assert len(x3) == 4 and g3.max() == 60.0 and g3.shape[1] == 3
@@ -289,3 +303,19 @@ def test_plot_feed_advice_draws_feeds_and_the_limit(tmp_path, force_maps):
         plots.plot_feed_advice(t, quantity="torque")
     with pytest.raises(TypeError):
         plots.plot_feed_advice([1, 2, 3])
+
+
+def test_folders_without_bands_mark_slices_without_claiming_their_reach(tmp_path):
+    """Results written without the slice height (older folders) have no bands: each slice is a thin
+    mark at its height and fills one heat map row, instead of a band guessed from its neighbours."""
+    with ResultWriter(tmp_path) as w:
+        w.add(em(3, [(0.0, 60.0)], op="rough"))
+    r = load_results(tmp_path)
+    assert r.slices["z_lo_mm"].isna().all()
+    _, z_edges, grid = engaged_span_grid(r)
+    rows = np.flatnonzero(grid[:, 0])
+    assert len(rows) == 4  # one row per slice, at its height
+    assert all(z_edges[k] <= z <= z_edges[k + 1] for k, z in zip(rows, [0.25, 0.75, 1.25, 1.75]))
+    ax = plot_engagement_map(r, 3).axes[0]
+    spans = [float(np.ptp(p.vertices[:, 1])) for coll in ax.collections for p in coll.get_paths()]
+    assert len(spans) == 4 and max(spans) == pytest.approx(0.04 * 1.75)
