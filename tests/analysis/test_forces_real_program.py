@@ -159,6 +159,9 @@ def test_forces_of_a_results_folder_need_no_program(run):
     words, CL by CL, to the last bits the tables' float round trip allows."""
     full, maps, out = run
     results = load_results(out)
+    sl = results.slices
+    assert sl[["z_lo_mm", "z_hi_mm"]].notna().all().all()  # the engine's slices all sit on its rule
+    np.testing.assert_allclose(0.5 * (sl["z_lo_mm"] + sl["z_hi_mm"]), sl["z_tool_mm"], rtol=0, atol=1e-12)
     alone = forces_from_results(results, K)
     rpm_at = {m.source.line: m.spindle_rpm for m in full.moves}
     live = forces_table(maps, full.tools[1], K, [rpm_at[m.source.line] for m in maps], dz=SLICE)

@@ -121,6 +121,24 @@ def mats_by_index(tree: dict, mesh: dict) -> dict:
     return tree["materials"][mesh["primitives"][0]["material"]]
 
 
+def test_entry_and_exit_lines_run_over_the_engine_bands(cl_state):
+    """The slot CL's entry and exit lines cover the slices' bands by the engine's slice rule, the ones
+    the results record (z_lo_mm .. z_hi_mm); without the slice height the bands are unknown and only
+    the arcs are drawn, no spacing guessed."""
+    from fusioncut.engines.brep.export import engagement_lines
+    from fusioncut.io.results import slice_rows
+
+    m = cl_state.map
+    lines = engagement_lines(m, TOOL, slice_height=0.5)
+    rows = slice_rows(m, 0.5)
+    bottom, top = min(r["z_lo_mm"] for r in rows), max(r["z_hi_mm"] for r in rows)
+    zs = lines.entry[..., 2] - TIP[2]
+    assert zs.min() == pytest.approx(bottom, abs=1e-12) and zs.max() == pytest.approx(top, abs=1e-12)
+    assert top - bottom == pytest.approx(m.ap, abs=1e-9)  # the bands tile the axial contact
+    bare = engagement_lines(m, TOOL)
+    assert len(bare.entry) == len(bare.exit) == 0 and len(bare.arcs) == len(lines.arcs) > 0
+
+
 def test_glb_of_an_air_cl_has_no_contact_or_lines(cl_state):
     from dataclasses import replace
 

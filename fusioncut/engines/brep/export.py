@@ -41,6 +41,7 @@ from fusioncut.engines.brep.occ import (
 from fusioncut.engines.brep.sweep import placed_tool
 from fusioncut.engines.segments import segments_for
 from fusioncut.errors import FusionCutError, GeometryError, InputError
+from fusioncut.io.results import slice_band
 from fusioncut.model.angles import machine_from_immersion
 from fusioncut.model.engagement import EngagementMap, SliceEngagement
 from fusioncut.model.moves import Move, Toolpath
@@ -404,23 +405,13 @@ class EngagementLines:
     arcs: np.ndarray
 
 
-def _slice_bands(em: EngagementMap, slice_height: float | None) -> list[tuple[float, float]]:
-    """Height band (mm above the tip) each slice stands for, clipped to the flute contact range."""
-    zs = [s.z for s in em.slices]
-    lo_c, hi_c = em.axial_range
+def _slice_bands(em: EngagementMap, slice_height: float | None) -> list[tuple[float, float] | None]:
+    """Height band (mm above the tip) of each slice, by the engine's slice rule
+    (:func:`fusioncut.io.results.slice_band`, as the results record it); ``None`` where it is not
+    known: without the run's slice height, or for a slice the rule does not place there."""
     if slice_height is None:
-        # the slices are slice_height apart except where the contact range clips the first or last
-        # band; the widest gap between neighbours is the spacing
-        gaps = [b - a for a, b in zip(zs, zs[1:])]
-        slice_height = max(gaps) if gaps else max(hi_c - lo_c, 1e-3)
-    bands = []
-    for z in zs:
-        k = math.floor(z / slice_height)
-        lo, hi = max(k * slice_height, lo_c), min((k + 1) * slice_height, hi_c)
-        if hi <= lo:  # no contact range known (or a slice outside it): a band about the slice height
-            lo, hi = z - 0.5 * slice_height, z + 0.5 * slice_height
-        bands.append((lo, hi))
-    return bands
+        return [None] * len(em.slices)
+    return [slice_band(s.z, slice_height, em.axial_range) for s in em.slices]
 
 
 def _surface_point(tool: MillingTool, tip, theta_deg: float, z: float, radius: float | None = None) -> np.ndarray:
@@ -440,9 +431,10 @@ def engagement_lines(em: EngagementMap, tool: MillingTool, slice_height: float |
                      arc_step_deg: float = 3.0) -> EngagementLines:
     """Entry / exit lines and engaged arcs of ``em`` on ``tool`` at the CL (see :class:`EngagementLines`).
 
-    ``slice_height`` (mm) is the run's slice spacing; ``None`` takes the widest spacing between
-    neighbouring slices. An interval engaged all round (a plunge) has no entry or exit; only its arc
-    (the whole circle) is drawn.
+    ``slice_height`` (mm) is the run's slice height, which gives each slice its band (the entry and exit
+    lines run over it); without it, or for a slice off the engine's slice rule, the band is unknown and
+    only the slice's arcs are drawn. An interval engaged all round (a plunge) has no entry or exit;
+    only its arc (the whole circle) is drawn.
     """
     tip = em.position
     entry, exit_, arcs = [], [], []
@@ -454,7 +446,7 @@ def engagement_lines(em: EngagementMap, tool: MillingTool, slice_height: float |
             n = max(1, math.ceil(span / arc_step_deg - 1e-9))
             pts = [_surface_point(tool, tip, start + span * k / n, s.z, s.radius) for k in range(n + 1)]
             arcs += list(zip(pts, pts[1:]))
-            if span >= 360.0 - 1e-9:
+            if span >= 360.0 - 1e-9 or band is None:
                 continue
             entry += _generator(tool, tip, machine_from_immersion(iv.entry, em.feed_angle, em.spindle), band)
             exit_ += _generator(tool, tip, machine_from_immersion(iv.exit % 360.0, em.feed_angle, em.spindle), band)
