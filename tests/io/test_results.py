@@ -452,3 +452,25 @@ def test_column_tables_render_every_column(name, columns):
         cells = [x.strip() for x in re.split(r"(?<!\\)\|", line)[1:-1]]  # an escaped pipe is text
         assert cells == [f"`{c.name}`", c.dtype, c.unit or "-", c.description.replace("|", "\\|")]
     assert f"``{columns[-1].name}``" in res.column_table(name, "rst") and f"``{name}`` table" in res.__doc__
+
+
+def test_a_run_records_its_options_tools_and_speeds(tmp_path):
+    """Through the runner: the folder of a real (tiny) run rebuilds its tool, knows its slice height
+    and options, and carries the program's spindle speed on each CL and a band on each slice."""
+    from fusioncut.model import BoxStock, LinearMove, Toolpath
+    from fusioncut.runner import run_toolpath
+
+    tool = FlatEndMill(6.0, 15.0, flutes=4, helix_angle=45.0, number=1)
+    pts = [(-5.0, 5.0, -1.3), (12.0, 5.0, -1.3), (12.0, 9.0, -1.3)]
+    moves = tuple(LinearMove(a, b, feed=600.0, spindle_rpm=s, tool=1) for a, b, s in zip(pts, pts[1:], (9000.0, None)))
+    opts = EngineOptions(slice_height=DZ, cell_size=None)
+    run_toolpath(Toolpath(moves, {1: tool}), BoxStock((0.0, 0.0, -10.0), (30.0, 20.0, 0.0)), tmp_path, opts,
+                 export_ipw=False)
+    r = load_results(tmp_path)
+    assert r.tools == {"T1": tool} and r.slice_height == DZ and r.options["cell_size"] is None
+    assert r.missing == {}
+    assert r.cl["spindle_rpm"].iloc[0] == 9000.0 and math.isnan(r.cl["spindle_rpm"].iloc[1])
+    assert len(r.slices) and r.slices[["z_lo_mm", "z_hi_mm"]].notna().all().all()
+    assert r.cl["ap_mm"].max() == pytest.approx(1.3, abs=1e-9)
+    top = r.slices.groupby("cl")["z_hi_mm"].max() - r.slices.groupby("cl")["z_lo_mm"].min()
+    np.testing.assert_allclose(top.to_numpy(), r.cl.set_index("cl").loc[top.index, "ap_mm"].to_numpy(), atol=1e-9)
