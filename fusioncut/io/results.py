@@ -42,15 +42,15 @@ every column).
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
 import time
 from collections.abc import Mapping
-import dataclasses
 from dataclasses import dataclass, field
-from pathlib import Path
 from enum import Enum
+from pathlib import Path
 from typing import Any
 
 import pandas as pd
@@ -194,7 +194,7 @@ def slice_rows(em: EngagementMap, slice_height: float | None = None) -> list[dic
     ``slice_height`` (mm) each row carries its band (:func:`slice_band`); without, the band is NaN."""
     rows = []
     for s in em.slices:
-        band = slice_band(s.z, slice_height, em.axial_range) if s.intervals and slice_height else None
+        band = slice_band(s.z, slice_height, em.axial_range) if s.intervals and slice_height is not None else None
         lo, hi = band or (math.nan, math.nan)
         for k, (iv, (m0, m1)) in enumerate(zip(s.intervals, em.machine_intervals(s))):
             rows.append({
@@ -652,7 +652,7 @@ def load_results(path: str | os.PathLike[str], *, prefer: str = "parquet") -> Re
     tools: dict[str, MillingTool] = {}
     for label, record in (meta.get("tools") or {}).items():
         try:
-            tools[label] = tool_from_record(record, label)
+            tools[label] = tool_from_record(record)
         except InputError as exc:
             missing[f"tool {label}"] = f"metadata.json has no full record of it ({exc.reason})"
     return Results(cl=cl, slices=slices, summary=summary, metadata=meta, source=source, options=options,
