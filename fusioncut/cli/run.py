@@ -196,17 +196,15 @@ def _with_engine_flags(command: Callable[..., None]) -> None:
     annotations = {p.name: p.annotation for p in params}
     for f in engine_option_fields():
         flag = "--" + f.name.replace("_", "-")
-        default = getattr(f.default, "value", f.default)
         choices = get_args(f.type) if get_origin(f.type) is Literal else ()
         optional = type(None) in get_args(f.type)
         if optional:
             _OPTIONAL.add(f.name)
-        text = f"{f.help} (default: {'none' if default is None else default})".lstrip()
         if f.type is bool:
-            option, annotation = typer.Option(None, f"{flag}/--no-{flag[2:]}", help=text), Optional[bool]
+            option, annotation = typer.Option(None, f"{flag}/--no-{flag[2:]}", help=f.description), Optional[bool]
         else:
             metavar = "|".join(choices) if choices else ("NUMBER|none" if optional else "NUMBER")
-            option, annotation = typer.Option(None, flag, metavar=metavar, help=text), Optional[str]
+            option, annotation = typer.Option(None, flag, metavar=metavar, help=f.description), Optional[str]
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option,
                                         annotation=annotation))
         annotations[f.name] = annotation

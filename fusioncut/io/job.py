@@ -199,25 +199,31 @@ OPTION_TYPES: dict[str, Any] = {"sweep": Literal["exact", "sampled"]}
 class OptionField:
     """One engine option as a job states it: ``name``, its Python ``type`` (the field's annotation, or
     :data:`OPTION_TYPES`'),
-    ``default`` (EngineOptions') and ``help`` (the field's ``metadata["help"]``, "" when it has none)."""
+    ``default`` (EngineOptions', an enum as its value) and ``help`` (the field's ``metadata["help"]``, "" when it has none)."""
 
     name: str
     type: Any
     default: Any
     help: str
 
+    @property
+    def description(self) -> str:
+        """The help with the default, as the CLI's flags and the service's form show it."""
+        return f"{self.help} (default: {'none' if self.default is None else self.default})".lstrip()
+
 
 def engine_option_fields() -> tuple[OptionField, ...]:
     """The engine options a job may set, in :class:`EngineOptions` order (see :data:`ENGINE_ONLY`)."""
     hints = get_type_hints(EngineOptions)
-    return tuple(OptionField(f.name, OPTION_TYPES.get(f.name, hints[f.name]), f.default, str(f.metadata.get("help", "")))
+    return tuple(OptionField(f.name, OPTION_TYPES.get(f.name, hints[f.name]),
+                             f.default.value if isinstance(f.default, Enum) else f.default,
+                             str(f.metadata.get("help", "")))
                  for f in dataclasses.fields(EngineOptions) if f.name not in ENGINE_ONLY)
 
 
 def _engine_option(f: OptionField) -> tuple[Any, Any]:
-    default = f.default.value if isinstance(f.default, Enum) else f.default
     numeric = f.type in (float, int, float | None, int | None)
-    return f.type, Field(default, description=f.help or None, **({"allow_inf_nan": False} if numeric else {}),
+    return f.type, Field(f.default, description=f.help or None, **({"allow_inf_nan": False} if numeric else {}),
                          **OPTION_BOUNDS.get(f.name, {}))
 
 

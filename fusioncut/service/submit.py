@@ -11,15 +11,16 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from fusioncut.engines.sizing import Budget
 from fusioncut.errors import FusionCutError, InputError
-from fusioncut.io.job import Job
+from fusioncut.io.job import Job, OptionField, engine_option_fields
 from fusioncut.service.files import INPUT_DIR, JOB_FILE, check_name
 
 STOCK_SUFFIXES = (".step", ".stp", ".brep")
@@ -57,6 +58,40 @@ class JobSubmission(BaseModel):
     files: dict[str, str] = Field(default_factory=dict, description="file name -> file text")
 
 
+def _form_field(f: OptionField) -> tuple[dict[str, Any], Callable[[str], Any]]:
+    """The form field of a job engine option: its JSON schema and how its text becomes the value
+    (``none`` for an option whose ``None`` means something; the job's validation does the rest)."""
+    args = get_args(f.type)
+    optional = type(None) in args
+    kind = next((a for a in args if a is not type(None)), f.type) if optional else f.type
+    schema: dict[str, Any] = {"description": f.description}
+    if get_origin(kind) is Literal:
+        schema.update(type="string", enum=list(get_args(kind)))
+        convert: Callable[[str], Any] = str
+    elif kind is bool:
+        schema["type"] = "boolean"
+        convert = _flag
+    else:
+        schema["type"] = "integer" if kind is int else "number"
+        convert = int if kind is int else float
+    if optional:
+        schema = {"anyOf": [schema, {"type": "string", "enum": ["none"]}], "description": schema.pop("description")}
+        convert = _or_none(convert)
+    return schema, convert
+
+
+def _flag(text: str) -> bool:
+    return text.lower() in ("1", "true", "on", "yes")
+
+
+def _or_none(convert: Callable[[str], Any]) -> Callable[[str], Any]:
+    return lambda text: None if text.strip().lower() in ("none", "null") else convert(text)
+
+
+# the job engine options a form may set, generated from EngineOptions: name -> (schema, converter)
+_OPTION_FORM = {f.name: _form_field(f) for f in engine_option_fields()}
+OPTION_FIELDS: dict[str, Callable[[str], Any]] = {name: convert for name, (_, convert) in _OPTION_FORM.items()}
+
 MULTIPART_SCHEMA: dict[str, Any] = {
     "type": "object",
     "description": (
@@ -71,14 +106,10 @@ MULTIPART_SCHEMA: dict[str, Any] = {
         "job": {"type": "string", "description": "job JSON (may be partial, see above)"},
         "demo": {"type": "boolean", "description": "run the built-in demo instead"},
         "name": {"type": "string"},
-        "slice_height": {"type": "number"},
-        "max_segment_length": {"type": "number"},
-        "sweep": {"type": "string", "enum": ["exact", "sampled"]},
+        **{name: schema for name, (schema, _) in _OPTION_FORM.items()},
         "strict": {"type": "boolean"},
     },
 }
-
-OPTION_FIELDS = {"slice_height": float, "max_segment_length": float, "sweep": str}
 
 
 @dataclass
@@ -169,7 +200,7 @@ def build_job_from_form(job_text: str | None, uploads: dict[str, list[str]], for
     if options:
         data["options"] = options
     if form.get("strict") not in (None, ""):
-        data["strict"] = form["strict"].lower() in ("1", "true", "on", "yes")
+        data["strict"] = _flag(form["strict"])
     if not data.get("toolpaths"):
         raise SubmissionError(422, "no toolpath file: upload at least one (field 'toolpath') or choose the demo")
     try:

@@ -233,3 +233,33 @@ def test_view_demo_numbers_the_demo_jobs_cls():
     assert [m.end for m in segments_for(toolpath.moves, options)] == \
         [m.end for m in segments_for(job_moves, options)]
     assert len(segments_for(toolpath.moves, options)) == 768
+
+
+# -- the upload form's option fields ---------------------------------------------------------------
+
+def test_the_forms_option_fields_are_the_jobs_engine_options():
+    from fusioncut.io.job import Options, engine_option_fields
+    from fusioncut.service.submit import MULTIPART_SCHEMA, OPTION_FIELDS
+
+    names = [f.name for f in engine_option_fields()]
+    assert list(OPTION_FIELDS) == names and set(names) <= set(Options.model_fields)
+    for f in engine_option_fields():
+        field = MULTIPART_SCHEMA["properties"][f.name]
+        assert field["description"] == f.description and f.help in field["description"]
+    assert MULTIPART_SCHEMA["properties"]["sweep"]["enum"] == ["exact", "sampled"]
+
+
+def test_form_options_are_converted_and_validated_like_a_job_file():
+    from fusioncut.service.submit import SubmissionError, build_job_from_form
+
+    uploads = {"toolpath": ["a.nc"]}
+    job = build_job_from_form(None, uploads, {"slice_height": "0.5", "cell_size": "none", "sweep": "sampled",
+                                              "min_chip_thickness": ""})
+    assert (job.options.slice_height, job.options.cell_size, job.options.sweep) == (0.5, None, "sampled")
+    assert job.options.min_chip_thickness == 1e-3  # left empty: the default
+    with pytest.raises(SubmissionError, match="ramp_step: 'fine' is not a number"):
+        build_job_from_form(None, uploads, {"ramp_step": "fine"})
+    with pytest.raises(SubmissionError, match="job.options.slice_height"):
+        build_job_from_form(None, uploads, {"slice_height": "-1"})
+    with pytest.raises(SubmissionError, match="slice_height: 'none' is not a number"):
+        build_job_from_form(None, uploads, {"slice_height": "none"})  # only options whose None means something
