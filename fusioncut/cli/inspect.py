@@ -29,12 +29,13 @@ from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
 from fusioncut.errors import FusionCutError, InputError, SourceLocation
-from fusioncut.io.gcode_budget import DEFAULT_MAX_MOVES
+from fusioncut.io.readers import (DEFAULT_TOOLPATH_READER, TOOL_LIBRARY_READERS, TOOLPATH_READERS, read_tool_library,
+                                  toolpath_format)
+from fusioncut.io.gcode import DEFAULT_MAX_MOVES
 from fusioncut.model import BallEndMill, MillingTool, Move, Toolpath
 
 console = Console()
 
-APT_SUFFIXES = {".apt", ".cls", ".clsf", ".aptsource"}
 MOVE_KINDS = ("rapid", "linear", "arc", "helix")
 MAX_WARNINGS_SHOWN = 20  # the table view; --json lists them all
 
@@ -46,31 +47,42 @@ MAX_WARNINGS_SHOWN = 20  # the table view; --json lists them all
 def inspect_file(path: Path, tools_path: Path | None = None, strict: bool = False,
                  max_moves: int | None = DEFAULT_MAX_MOVES) -> dict[str, Any]:
     """The inspection report of ``path`` (see the module docstring); raises the readers' errors.
-    ``max_moves`` bounds what a G-code program may expand to (:mod:`fusioncut.io.gcode_budget`)."""
-    from fusioncut.io.tool_library import read_tool_library
+    ``max_moves`` bounds what a G-code program may expand to (:mod:`fusioncut.io.gcode_budget`).
 
+    The format is the one :mod:`fusioncut.io.readers` reads the file with; a ``.json`` file is a
+    Fusion tool library when it holds ``data`` and no ``toolpath``, else a Fusion JSON toolpath."""
     library = read_tool_library(tools_path) if tools_path is not None else None
     suffix = path.suffix.lower()
-    if suffix in (".tbl", ".tools"):
+    if suffix in TOOL_LIBRARY_READERS and (suffix != ".json" or _is_tool_library_json(path)):
         return _library_report(path, read_tool_library(path))
-    if suffix == ".camotics":
-        return _camotics_report(path, library, strict, max_moves)
-    if suffix == ".json":
-        doc = _peek_json(path)
-        if isinstance(doc, dict) and "data" in doc and "toolpath" not in doc:
-            return _library_report(path, read_tool_library(path))
-        from fusioncut.io.fusion_json import read_fusion_json
+    report = _TOOLPATH_REPORTS[toolpath_format(path).format]
+    return report(path, library, strict, max_moves)
 
-        tp = read_fusion_json(path)
-        unit = {"in": "inch"}.get(doc.get("unit"), doc.get("unit")) if isinstance(doc, dict) else None
-        return _toolpath_report(path, "Fusion JSON toolpath", tp, [unit or "mm"],
-                                "from the document's \"unit\"", library)
-    if suffix in APT_SUFFIXES:
-        from fusioncut.io.apt import read_apt
 
-        tp = read_apt(path)
-        units, note = _apt_units(path)
-        return _toolpath_report(path, "APT / CLSF", tp, units, note, library)
+def _is_tool_library_json(path: Path) -> bool:
+    doc = _peek_json(path)
+    return isinstance(doc, dict) and "data" in doc and "toolpath" not in doc
+
+
+def _fusion_json_report(path: Path, library: Any, strict: bool, max_moves: int | None) -> dict[str, Any]:
+    from fusioncut.io.fusion_json import read_fusion_json
+
+    tp = read_fusion_json(path)
+    doc = _peek_json(path)
+    unit = {"in": "inch"}.get(doc.get("unit"), doc.get("unit")) if isinstance(doc, dict) else None
+    return _toolpath_report(path, "Fusion JSON toolpath", tp, [unit or "mm"], "from the document's \"unit\"",
+                            library)
+
+
+def _apt_report(path: Path, library: Any, strict: bool, max_moves: int | None) -> dict[str, Any]:
+    from fusioncut.io.apt import read_apt
+
+    tp = read_apt(path)
+    units, note = _apt_units(path)
+    return _toolpath_report(path, "APT / CLSF", tp, units, note, library)
+
+
+def _gcode_report(path: Path, library: Any, strict: bool, max_moves: int | None) -> dict[str, Any]:
     tp, units = _read_gcode(path, library, strict, max_moves)
     return _toolpath_report(path, "G-code (RS274/NGC)", tp, units,
                             "as programmed by G20/G21; mm where the program states neither", library)
@@ -277,6 +289,15 @@ def _camotics_report(path: Path, library: Any, strict: bool, max_moves: int | No
                               {"stock": stock, "programs": programs})
     report["refused_tools"] = _refused(tools)
     return report
+
+
+# a toolpath reader's format (fusioncut.io.readers) -> its report
+_TOOLPATH_REPORTS = {
+    DEFAULT_TOOLPATH_READER.format: _gcode_report,
+    TOOLPATH_READERS[".apt"].format: _apt_report,
+    TOOLPATH_READERS[".json"].format: _fusion_json_report,
+    TOOLPATH_READERS[".camotics"].format: _camotics_report,
+}
 
 
 # --------------------------------------------------------------------------------------------------
