@@ -43,8 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.errors import FusionCutError, InputError
-from fusioncut.io.job import (Job, job_options, load_job, make_options, program_job, stock_entry, tool_entries,
-                              with_options)
+from fusioncut.io.job import Job, job_options, load_job, make_options, program_job, stock_entry, with_inputs
 from fusioncut.io.readers import is_job_file
 from fusioncut.model import EngagementMap, MillingTool, Stock, Toolpath
 
@@ -96,28 +95,13 @@ def simulate(job_or_program: Job | Toolpath | str | Path, *, stock: str | Stock 
             job, base = load_job(job_or_program)
         else:
             job, base, write_job = program_job(job_or_program), Path.cwd(), True
-        job = _with_inputs(job, stock, tools, options)
+        job = with_inputs(job, stock=stock, tools=tools, options=options)
         prepared = prepare_job(job, base)
     if engine_options is not None:
         prepared = replace(prepared, options=engine_options)
     if workers > 1:
         prepared = replace(prepared, workers=workers)
     return Run(prepared, out, job if write_job else None)
-
-
-def _with_inputs(job: Job, stock: str | Stock | None, tools: str | Path | Mapping[int, MillingTool] | None,
-                 options: EngineOptions | Mapping[str, Any] | None) -> Job:
-    """``job`` with the stock, tools and options :func:`simulate` was given in place of its own (tools
-    given by number are added to the job's, replacing those of the same number)."""
-    update: dict[str, Any] = tool_entries(tools)
-    if "tools" in update:
-        numbers = {t.number for t in update["tools"]}
-        update["tools"] += [t for t in job.tools if t.number not in numbers]
-    if stock is not None:
-        update["stock"] = stock_entry(stock)
-    if update:
-        job = job.model_copy(update=update)
-    return with_options(job, job_options(options))
 
 
 def _prepare_toolpath(toolpath: Toolpath, stock: str | Stock | None,

@@ -29,9 +29,9 @@ from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
 from fusioncut.errors import FusionCutError, InputError, SourceLocation
+from fusioncut.io.gcode import DEFAULT_MAX_MOVES
 from fusioncut.io.readers import (DEFAULT_TOOLPATH_READER, TOOL_LIBRARY_READERS, TOOLPATH_READERS, read_tool_library,
                                   toolpath_format)
-from fusioncut.io.gcode import DEFAULT_MAX_MOVES
 from fusioncut.model import BallEndMill, MillingTool, Move, Toolpath
 
 console = Console()
