@@ -71,8 +71,11 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from fusioncut.errors import GeometryError, InputError, SourceLocation
-from fusioncut.model.engagement import AngleInterval, CLStatus, EngagementMap, SliceEngagement
+from fusioncut.analysis.result_maps import (  # noqa: F401 - infer_slice_height: its importers move with it
+    engagement_maps_from_results, infer_slice_height, results_slice_height,
+)
+from fusioncut.errors import GeometryError, InputError
+from fusioncut.model.engagement import CLStatus, EngagementMap, SliceEngagement
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, SpindleDirection
 
 if TYPE_CHECKING:  # the force model itself needs no pandas; only results tables bring it
@@ -571,7 +574,7 @@ def compute_forces(
 
 
 # ------------------------------------------------------------------------------------------------
-# chip thickness, and forces from saved result tables
+# chip thickness, and force tables (also of saved results: maps rebuilt by fusioncut.analysis.result_maps)
 # ------------------------------------------------------------------------------------------------
 
 def peak_chip_thickness(emap: EngagementMap, tool: MillingTool, feed_per_tooth: float, *,
@@ -600,122 +603,6 @@ def peak_chip_thickness(emap: EngagementMap, tool: MillingTool, feed_per_tooth: 
             top = 1.0 if math.pi / 2 + k * _TWO_PI <= e + 1e-12 else max(math.sin(a), math.sin(e))
             best = max(best, top * float(b.sk[m]))
     return feed_per_tooth * best
-
-
-def infer_slice_height(results: object) -> float:
-    """The engine's slice height (mm) behind a results directory, which the tables do not store.
-
-    The engine puts a slice in the middle of the part of its cell ``[k dz, (k+1) dz]`` in contact, so
-    with the right ``dz`` the rebuilt axial range of every CL with two or more slices (see
-    :func:`engagement_maps_from_results`) spans exactly its ``ap``. The candidates are the gaps
-    between neighbouring slices of a CL and twice the lowest slice height (a CL cutting from the tip
-    has its lowest slice at ``dz / 2``); the one that explains the most CLs wins (ties: the most
-    frequent). Without any CL of two or more slices every CL is a single band and any height at least
-    as large as every slice's reach serves; that is returned then.
-    """
-    sl = results.slices  # type: ignore[attr-defined]
-    cl = results.cl  # type: ignore[attr-defined]
-    z = sl[["cl", "z_tool_mm"]].drop_duplicates().sort_values(["cl", "z_tool_mm"])
-    per = z.groupby("cl")["z_tool_mm"].agg(["min", "max", "count"])
-    multi = per[per["count"] >= 2]
-    if not len(multi):
-        reach = float(z["z_tool_mm"].max()) if len(z) else 0.0
-        ap = float(cl["ap_mm"].max()) if len(cl) else 0.0
-        return max(1.0, 2.0 * (reach + ap) + 1.0)
-    gaps = z.groupby("cl")["z_tool_mm"].diff().dropna()
-    cands = _candidate_counts([gaps[gaps > 1e-9], 2.0 * multi["min"]])
-    ap = cl.drop_duplicates("cl", keep="last").set_index("cl")["ap_mm"].reindex(multi.index).to_numpy(dtype=float)
-    z0, z1 = multi["min"].to_numpy(dtype=float), multi["max"].to_numpy(dtype=float)
-    best, best_key = None, (-1, -1)
-    for dz, freq in cands[:20]:
-        k0, k1 = np.floor(z0 / dz + 1e-9), np.floor(z1 / dz + 1e-9)
-        a0 = np.maximum(k0 * dz, 2 * z0 - (k0 + 1) * dz)
-        a1 = np.minimum((k1 + 1) * dz, 2 * z1 - k1 * dz)
-        key = (int(np.count_nonzero(np.abs((a1 - a0) - ap) < 1e-6)), freq)
-        if key > best_key:
-            best, best_key = dz, key
-    return float(best)  # type: ignore[arg-type]
-
-
-def _candidate_counts(parts: list) -> list[tuple[float, int]]:
-    """Distinct values (rounded to 1 nm) of the given series with their counts, most frequent first."""
-    counts: dict[float, int] = {}
-    for part in parts:
-        for v in np.round(np.asarray(part, dtype=float), 6):
-            counts[float(v)] = counts.get(float(v), 0) + 1
-    return sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))
-
-
-def results_slice_height(results: Results, dz: float | None = None) -> float:
-    """The engine's slice height (mm) of ``results``: the recorded one (:attr:`Results.slice_height`).
-    ``dz`` (mm) is for folders written before it was recorded; given where it is recorded, it must
-    agree. An older folder without ``dz`` falls back to :func:`infer_slice_height`."""
-    if dz is not None and not (dz > 0 and math.isfinite(dz)):
-        raise InputError(f"slice height must be > 0 mm, got {dz}", results.path)
-    if results.slice_height is None:
-        return infer_slice_height(results) if dz is None else float(dz)
-    if dz is not None and abs(dz - results.slice_height) > 1e-9 * max(1.0, dz):
-        raise InputError(f"the results were computed with slice height {results.slice_height:g} mm, not {dz:g} mm "
-                         "(leave --slice-height out)", results.path)
-    return results.slice_height
-
-
-def _axial_range(bands: np.ndarray, zs: list[float], ap: float, dz: float) -> tuple[float, float]:
-    """A CL's flute contact range (mm above the tip) from its slices' recorded bands (rows
-    ``[z_lo, z_hi]``: the range runs from the lowest band's bottom to the highest band's top, which
-    gives the engine's bands back exactly), or, for folders written before bands were recorded, from
-    the engine's slice rule inverted: the lowest slice ``z0`` of cell ``k0`` sits in the middle of
-    ``[max(k0 dz, a0), ...]``, so ``a0 = 2 z0 - (k0+1) dz`` when clipped, and alike at the top; a single
-    slice gives ``z -/+ ap/2``."""
-    if len(bands) and not np.isnan(bands).any():
-        return float(bands[:, 0].min()), float(bands[:, 1].max())
-    z0, z1 = zs[0], zs[-1]
-    if len(zs) == 1:
-        return z0 - 0.5 * ap, z0 + 0.5 * ap
-    k0, k1 = math.floor(z0 / dz + 1e-9), math.floor(z1 / dz + 1e-9)
-    return max(k0 * dz, 2 * z0 - (k0 + 1) * dz), min((k1 + 1) * dz, 2 * z1 - k1 * dz)
-
-
-def engagement_maps_from_results(results: Results, dz: float | None = None) -> list[EngagementMap]:
-    """Engagement maps rebuilt from loaded result tables (:func:`fusioncut.io.results.load_results`),
-    one per ``cl`` row, in table order, for the force model (pass the same slice height, see
-    :func:`results_slice_height`, to :func:`compute_cl_forces` to get the engine's bands back).
-
-    Each map's ``axial_range`` is rebuilt from its slices' recorded bands (:func:`_axial_range`; from
-    the slice rule and ``dz`` for older folders). Timings and non-engaged slices are not in the
-    tables and are left out.
-    """
-    cl = results.cl
-    sl = results.slices
-    dz = results_slice_height(results, dz)
-    by_cl: dict[int, list[SliceEngagement]] = {}
-    bands: dict[int, list[tuple[float, float]]] = {}
-    if len(sl):
-        sl = sl.sort_values(["cl", "z_tool_mm", "interval"], kind="stable")
-        for (c, z), g in sl.groupby(["cl", "z_tool_mm"], sort=False):
-            ivs = tuple(AngleInterval(float(a), float(b)) for a, b in zip(g["entry_deg"], g["exit_deg"]))
-            first = g.iloc[0]
-            by_cl.setdefault(int(c), []).append(SliceEngagement(
-                z=float(z), z_machine=float(first["z_machine_mm"]), radius=float(first["radius_mm"]), intervals=ivs))
-            bands.setdefault(int(c), []).append((float(first["z_lo_mm"]), float(first["z_hi_mm"])))
-    out = []
-    for row in cl.itertuples(index=False):
-        slices = tuple(by_cl.get(int(row.cl), ()))
-        axial = (0.0, 0.0)
-        if slices:
-            axial = _axial_range(np.array(bands[int(row.cl)], dtype=float), [s.z for s in slices], float(row.ap_mm), dz)
-        feed = None if math.isnan(row.feed_mm_min) else float(row.feed_mm_min)
-        out.append(EngagementMap(
-            cl_index=int(row.cl), position=(float(row.x), float(row.y), float(row.z)),
-            start=(float(row.x0), float(row.y0), float(row.z0)), tool=str(row.tool),
-            spindle=SpindleDirection(str(row.spindle)), feed_angle=float(row.feed_angle_machine_deg),
-            status=CLStatus(str(row.status)), source=SourceLocation(str(row.file), int(row.line)), feed=feed,
-            operation=str(row.operation), slices=slices, contact_area=float(row.contact_area_mm2),
-            shank_contact_area=float(row.shank_contact_area_mm2), removed_volume=float(row.removed_volume_mm3),
-            reason=str(row.reason), warnings=tuple(w for w in str(row.warnings).split(" | ") if w),
-            sweep_method=str(row.sweep_method), axial_range=axial, rubbing_slices=int(row.rubbing_slices),
-        ))
-    return out
 
 
 FORCE_COLUMNS: tuple[tuple[str, str, str], ...] = (
