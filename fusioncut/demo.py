@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from fusioncut.model import ArcMove, BallEndMill, BoxStock, FlatEndMill, LinearMove, MillingTool, Move, Toolpath
+from fusioncut.io.job import ToolSpec
+from fusioncut.model import ArcMove, BallEndMill, BoxStock, FlatEndMill, LinearMove, Move, Toolpath
 
 STOCK = BoxStock((0.0, 0.0, -20.0), (80.0, 50.0, 0.0))
 FLAT = FlatEndMill(10.0, 25.0, flutes=3, helix_angle=35.0, number=1, name="T1 10mm flat")
@@ -91,7 +92,8 @@ def demo_stock() -> BoxStock:
 # engaged in the other).
 
 DEMO_FILE = "demo.ngc"
-# the CLI demo's segment length: short CLs give smooth engagement curves
+# the demo's job options, for `fusioncut demo`, `fusioncut view demo` and the service's demo alike:
+# short CLs give smooth engagement curves
 DEMO_OPTIONS = {"slice_height": 1.0, "max_segment_length": 2.0}
 
 
@@ -99,14 +101,6 @@ def _num(v: float) -> str:
     # repr-exact for the demo's decimal coordinates, without float noise like 8.000000000001
     s = f"{v:.6f}".rstrip("0").rstrip(".")
     return "0" if s in ("-0", "") else s
-
-
-def _tool_spec(t: MillingTool) -> dict[str, Any]:
-    kind = "ball" if isinstance(t, BallEndMill) else "flat" if isinstance(t, FlatEndMill) else None
-    if kind is None:
-        raise ValueError(f"demo tool {t.label} is neither flat nor ball")
-    return {"number": t.number, "kind": kind, "diameter": t.diameter, "flute_length": t.flute_length,
-            "flutes": t.flutes, "helix_angle": t.helix_angle, "spindle": t.spindle.value, "name": t.name}
 
 
 def demo_gcode() -> str:
@@ -146,7 +140,7 @@ def demo_job(name: str = "demo", **options: Any) -> dict[str, Any]:
     one job that ``fusioncut demo`` runs and that the service's demo submits."""
     tp, stock = demo_toolpath(), demo_stock()
     return {"name": name, "stock": {"kind": "box", "min": list(stock.minimum), "max": list(stock.maximum)},
-            "tools": [_tool_spec(t) for _, t in sorted(tp.tools.items())],
+            "tools": [ToolSpec.of(t, n).model_dump(exclude_defaults=True) for n, t in sorted(tp.tools.items())],
             "toolpaths": [DEMO_FILE], "options": {**DEMO_OPTIONS, **options}}
 
 

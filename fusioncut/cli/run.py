@@ -35,6 +35,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 from rich.table import Table
 
 from fusioncut.cli._errors import friendly_errors
+from fusioncut.demo import DEMO_OPTIONS
 from fusioncut.engines.sizing import Budget
 from fusioncut.model import EngagementMap
 
@@ -216,8 +217,10 @@ def register(app: typer.Typer) -> None:
     @app.command()
     @friendly_errors
     def demo(out: Path = typer.Option(Path("fusioncut-out/demo"), help="results folder"),
-             slice_height: float = typer.Option(1.0, help="axial slice spacing, mm"),
-             sweep: str = typer.Option("exact", help="exact, or sampled (tool copies, the published method)"),
+             slice_height: Optional[float] = typer.Option(None, help="axial slice spacing, mm (default: the demo's, "
+                                                                      f"{DEMO_OPTIONS['slice_height']:g})"),
+             sweep: Optional[str] = typer.Option(None, help="exact (the default), or sampled (tool copies, the "
+                                                            "published method)"),
              log_file: Optional[Path] = typer.Option(None, help=LOG_FILE_HELP),
              log_level: LogLevel = typer.Option(LogLevel.info, case_sensitive=False, help=LOG_LEVEL_HELP),
              ipw_export: bool = typer.Option(True, "--ipw-export/--no-ipw-export", help=IPW_HELP)) -> None:
@@ -226,12 +229,10 @@ def register(app: typer.Typer) -> None:
         The demo is the service's demo job (:func:`fusioncut.demo.demo_job`): its G-code is written
         into the results folder as ``demo.ngc`` and run as a job, so both make the same CLs."""
         from fusioncut.demo import DEMO_FILE, demo_gcode, demo_job
-        from fusioncut.io.job import Job
+        from fusioncut.io.job import Job, with_options
         from fusioncut.runner import run_job
 
-        if sweep not in ("exact", "sampled"):
-            raise typer.BadParameter("--sweep is exact or sampled")
-        job = Job.model_validate(demo_job(slice_height=slice_height, sweep=sweep))
+        job = with_options(Job.model_validate(demo_job()), {"slice_height": slice_height, "sweep": sweep}, flags=True)
         out.mkdir(parents=True, exist_ok=True)
         (out / DEMO_FILE).write_text(demo_gcode(), encoding="utf-8")
         with _logging(log_file or out / "fusioncut.log", log_level, append=False):

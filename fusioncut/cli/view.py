@@ -14,7 +14,8 @@ from fusioncut.cli._errors import friendly_errors
 console = Console()
 
 def load_inputs(source: str, slice_height: float | None = None):
-    """``(toolpath, stock, options, default_tool, name)`` of a job file, or of the demo for ``"demo"``
+    """``(toolpath, stock, options, default_tool, name)`` of a job file, of a toolpath file (run as
+    ``fusioncut run PROGRAM`` runs it: its own tools, stock inferred), or of the demo for ``"demo"``
     (the job ``fusioncut demo`` and the service run, so CL numbers match their results)."""
     if source == "demo":
         import tempfile
@@ -28,10 +29,12 @@ def load_inputs(source: str, slice_height: float | None = None):
             job = Job.model_validate(demo_job(**({"slice_height": slice_height} if slice_height else {})))
             p = prepare_job(job, Path(folder))
         return p.toolpath, p.stock, p.options, p.default_tool, "demo"
-    from fusioncut.io.job import load_job
+    from fusioncut.io.job import load_job, program_job
+    from fusioncut.io.readers import is_job_file
     from fusioncut.runner import prepare_job
 
-    job, base = load_job(source)
+    program = Path(source).is_file() and not is_job_file(source)
+    job, base = (program_job(source), Path.cwd()) if program else load_job(source)
     p = prepare_job(job, base)
     options = replace(p.options, slice_height=slice_height) if slice_height else p.options
     return p.toolpath, p.stock, options, p.default_tool, job.name
@@ -69,7 +72,7 @@ def register(app: typer.Typer) -> None:
     @app.command("view")
     @friendly_errors
     def view(
-        source: str = typer.Argument(..., help="Job JSON file, or 'demo' for the built-in demo."),
+        source: str = typer.Argument(..., help="Job JSON file, toolpath file, or 'demo' for the built-in demo."),
         cl: int = typer.Option(..., "--cl", min=0, help="CL index to show (as in the run's results)."),
         out: Path = typer.Option(..., "--out", "-o", help="HTML page to write (self-contained, opens from disk)."),
         glb: Optional[Path] = typer.Option(None, "--glb", help="Also write the scene as glTF binary (.glb)."),
@@ -107,7 +110,7 @@ def register(app: typer.Typer) -> None:
     @app.command("export-ipw")
     @friendly_errors
     def export_ipw(
-        source: str = typer.Argument(..., help="Job JSON file, or 'demo' for the built-in demo."),
+        source: str = typer.Argument(..., help="Job JSON file, toolpath file, or 'demo' for the built-in demo."),
         cl: int = typer.Option(..., "--cl", min=0, help="The workpiece after this CL index."),
         out: Path = typer.Option(..., "--out", "-o", help="Output file: .step/.stp (exact), .stl (meshed), .brep."),
         deflection: float = typer.Option(0.01, "--deflection", min=1e-5, help="STL facet deflection, mm."),
