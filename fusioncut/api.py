@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 from fusioncut.engines.base import EngineOptions
 from fusioncut.errors import FusionCutError, InputError
+from fusioncut.extras import require
 from fusioncut.io.job import Job, job_options, load_job, make_options, program_job, stock_entry, with_inputs
 from fusioncut.io.readers import is_job_file
 from fusioncut.model import EngagementMap, MillingTool, Stock, Toolpath
@@ -101,6 +102,8 @@ def simulate(job_or_program: Job | Toolpath | str | Path, *, stock: str | Stock 
         prepared = replace(prepared, options=engine_options)
     if workers > 1:
         prepared = replace(prepared, workers=workers)
+    if prepared.workers > 1 or prepared.scheduler:
+        require("parallel", "running on Dask workers")
     return Run(prepared, out, job if write_job else None)
 
 

@@ -37,6 +37,7 @@ from rich.table import Table
 from fusioncut.cli._errors import friendly_errors
 from fusioncut.demo import DEMO_OPTIONS
 from fusioncut.engines.sizing import Budget
+from fusioncut.extras import require
 from fusioncut.model import EngagementMap
 
 console = Console()
@@ -283,6 +284,8 @@ def register(app: typer.Typer) -> None:
             base, write_job = Path.cwd(), True
         # run options: they change neither the job hash nor the results, so a resume still matches
         job = with_run_options(job, workers=workers, scheduler=scheduler)
+        if job.options.workers > 1 or job.options.scheduler:
+            require("parallel", "running on Dask workers (--workers, --scheduler or the job's options)")
         out = out or Path("fusioncut-out") / job.name
         if write_job:
             out.mkdir(parents=True, exist_ok=True)

@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
+from fusioncut.extras import require
 
 console = Console()
 
@@ -83,6 +84,7 @@ def register(app: typer.Typer) -> None:
         title: Optional[str] = typer.Option(None, "--title", help="Page title."),
     ) -> None:
         """3D view of one CL: workpiece, tool, contact faces, entry/exit lines (HTML page, optional GLB)."""
+        require("viz", "fusioncut view")
         from fusioncut.engines.brep.export import cl_scene
         from fusioncut.viz.scene import scene_glb, three_dir, write_view_html
 

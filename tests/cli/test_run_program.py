@@ -114,3 +114,18 @@ def test_a_posted_facing_program_runs_with_its_stock_top(tmp_path):
     assert (cl["status"] == "failed").sum() == 0 and (cl["status"] == "engaged").sum() >= 30
     assert abs(cl["ap_mm"].max() - 1.0) < 1e-9  # the face pass takes the 1 mm above z = 0
     assert json.loads((out / "job.json").read_text())["stock"]["top"] == 1.0
+
+
+def test_a_missing_extra_is_named_with_its_install_line(tmp_path, monkeypatch):
+    import importlib.util
+
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "distributed" else
+                        find_spec(name, *a))
+    program = tmp_path / "prog.nc"
+    program.write_text(PROGRAM)
+    res = runner.invoke(app, ["run", str(program), "--out", str(tmp_path / "out"), "--workers", "2"])
+    assert res.exit_code == 2, res.output
+    text = " ".join(res.output.split())
+    assert "[parallel] extra (distributed not installed): pip install 'fusioncut[parallel]'" in text
+    assert not (tmp_path / "out").exists()  # refused before anything is written
