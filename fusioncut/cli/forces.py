@@ -311,7 +311,7 @@ def advise(
 
     from fusioncut.analysis.feed import FEED_COLUMNS, FeedAdvice, FeedLimit, same_source_file, advise_feeds
     from fusioncut.errors import InputError
-    from fusioncut.io.gcode_rewrite import rewrite_gcode_file
+    from fusioncut.io.gcode import rewrite_gcode_file
     from fusioncut.viz.plots import SUFFIX_FORMATS, plot_feed_advice
 
     plot = plot or out.with_name(out.stem + "_feed.png")

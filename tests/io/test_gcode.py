@@ -515,7 +515,7 @@ def test_fast_path_equals_general_path(monkeypatch: pytest.MonkeyPatch) -> None:
         lines += (DATA / "camotics-examples/bear/bear.nc").read_text().splitlines()[:2000]
     text = "\n".join(lines)
     fast = GCodeInterpreter(text, source="t.ngc").run()
-    assert any(b is not None and b.simple for b in fast._blocks)
+    assert any(b is not None and b.simple for b in fast.program.blocks)
     monkeypatch.setattr(GCodeInterpreter, "_execute", GCodeInterpreter._execute_general)
     general = GCodeInterpreter(text, source="t.ngc").run()
     assert fast.moves == general.moves and fast.state == general.state

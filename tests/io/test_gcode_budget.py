@@ -1,4 +1,4 @@
-"""The interpreter's work budget (fusioncut.io.gcode_budget): a short program cannot ask for unbounded
+"""The interpreter's work budget (fusioncut.io.gcode.budget): a short program cannot ask for unbounded
 work. Programs of a few bytes that expand to millions of moves are refused before they expand (no
 timing asserts: the peak allocation while refusing them shows that nothing was expanded). The refusal
 is a JobTooLarge, as for the jobs the engine's sizing refuses."""
@@ -10,7 +10,7 @@ import pytest
 
 from fusioncut.errors import JobTooLarge
 from fusioncut.io.gcode import parse_gcode_text
-from fusioncut.io.gcode_budget import BLOCKS_PER_MOVE, MIN_BLOCKS
+from fusioncut.io.gcode.budget import BLOCKS_PER_MOVE, MIN_BLOCKS
 from fusioncut.model.moves import ArcMove, Toolpath
 
 PEAK_LIMIT = 50e6  # bytes; a million moves take hundreds of MB

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from fusioncut.errors import FusionCutError, InputError, SourceLocation
 from fusioncut.io.gcode import parse_gcode_text
-from fusioncut.io.gcode_rewrite import rewrite_feeds, rewrite_gcode_file
+from fusioncut.io.gcode import rewrite_feeds, rewrite_gcode_file
 
 DATA = Path("/work/shared/data")
 FUSION = DATA / "fusion-posted/1055_utab_265bit.nc"

@@ -23,7 +23,7 @@ from __future__ import annotations
 from typing import Iterable
 
 from fusioncut.errors import JobTooLarge, SourceLocation
-from fusioncut.io.gcode_parse import Block
+from fusioncut.io.gcode.lexer import Block
 
 __all__ = ["BLOCKS_PER_MOVE", "DEFAULT_MAX_MOVES", "MAX_ARC_TURNS", "MIN_BLOCKS", "MoveBudget", "may_leave_early"]
 

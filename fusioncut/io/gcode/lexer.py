@@ -437,7 +437,7 @@ class _Scanner:
         assert index is not None
 
         def indirect(p: ParameterStore) -> float:
-            return p.get_numbered(_param_index(evaluate(index, p), where), where)
+            return p.get_numbered(param_index(evaluate(index, p), where), where)
 
         return indirect
 
@@ -593,7 +593,8 @@ def _isdigit(ch: str) -> bool:
     return ch != "" and ch in _DIGITS
 
 
-def _param_index(v: float, where: SourceLocation) -> int:
+def param_index(v: float, where: SourceLocation) -> int:
+    """The parameter number a computed index ``v`` names (within 1e-4 of a whole number, 1..5601)."""
     n = round(v)
     if abs(v - n) > 1e-4:
         raise InputError(f"parameter number {v:g} is not an integer", where)

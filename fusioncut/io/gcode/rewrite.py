@@ -9,7 +9,7 @@ words, their order and spelling, comments, white space, line numbers, line endin
 How the feeds are written
 -------------------------
 * **Modal F.** ``F`` is modal: a line without one runs at the last ``F``. The rewriter follows the
-  program as the interpreter runs it (:class:`fusioncut.io.gcode.GCodeInterpreter`: subroutines,
+  program as the interpreter runs it (:class:`~fusioncut.io.gcode.interpreter.GCodeInterpreter`: subroutines,
   loops and canned cycles included) and gives a line an explicit ``F`` exactly when the feed in effect
   in the *new* program differs from the one that line needs: its advised feed, or else its original
   feed. So after a changed line, the first following line that relied on the original modal ``F``
@@ -44,10 +44,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from fusioncut.errors import InputError, SourceLocation
-from fusioncut.io.gcode import MM_PER_INCH, ArcCenters, GCodeInterpreter
-from fusioncut.io.gcode_parse import Block, parse_line
+from fusioncut.io.gcode.files import decode_gcode
+from fusioncut.io.gcode.interpreter import ArcCenters, GCodeInterpreter
+from fusioncut.io.gcode.lexer import Block, parse_line
 from fusioncut.model.moves import Move
 from fusioncut.model.tools import MillingTool
+from fusioncut.model.units import length_scale
 
 __all__ = ["RewriteResult", "rewrite_feeds", "rewrite_gcode_file"]
 
@@ -99,27 +101,27 @@ class _Exec:
 def _trace(text: str, source: str, tools: Mapping[int, MillingTool] | None,
            arc_centers: ArcCenters) -> tuple[list[_Exec], list[Move]]:
     interp = GCodeInterpreter(text, source=source, tools=tools, strict=False, arc_centers=arc_centers)
+    m = interp.machine
     execs: list[_Exec] = []
     last_of_line: dict[int, _Exec] = {}
-    mode = interp.feed_mode
+    mode = m.feed_mode
     prev_line = None
     for line, moves in interp:
         # the step that releases moves held by cutter compensation at the end of the text is not
         # a block of its own: it repeats the last line number and ends the program
         finish = interp.ended and line == prev_line
         if not finish:
-            e = _Exec(line, interp.feed, interp.feed_mode, interp.inch, interp.rpm, interp.motion,
-                      interp.feed_mode != mode, [])
+            e = _Exec(line, m.feed, m.feed_mode, m.inch, m.rpm, m.motion, m.feed_mode != mode, [])
             execs.append(e)
             last_of_line[line] = e
-        mode = interp.feed_mode
+        mode = m.feed_mode
         prev_line = line
         # with cutter compensation a move can come out one block late: it belongs to the latest
         # execution of the line it was programmed on
-        for m in moves:
-            owner = last_of_line.get(m.source.line)
-            if owner is not None and not m.is_rapid:
-                owner.moves.append(m)
+        for mv in moves:
+            owner = last_of_line.get(mv.source.line)
+            if owner is not None and not mv.is_rapid:
+                owner.moves.append(mv)
     return execs, interp.moves
 
 
@@ -250,14 +252,6 @@ def _format_exact(value: float, style: _Style, known: Mapping[float, str]) -> st
 # the rewriter
 
 
-def _decode(raw: bytes) -> tuple[str, str]:
-    # as read_gcode does: G-code is ASCII, old posts write Latin-1 comments
-    try:
-        return raw.decode("utf-8"), "utf-8"
-    except UnicodeDecodeError:
-        return raw.decode("latin-1"), "latin-1"
-
-
 def _same_motion(a: Move, b: Move) -> bool:
     # columns may shift on a line whose F number got longer or shorter: compare file and line only
     def norm(m: Move) -> Move:
@@ -325,7 +319,7 @@ def rewrite_feeds(
         if want is None:
             required.append(None if e.feed is None else (_format_exact(e.feed, style, known), e.feed))
             continue
-        scale = MM_PER_INCH if e.inch else 1.0
+        scale = length_scale(e.inch)
         if e.mode == "units_per_minute":
             number = want / scale
         elif e.mode == "units_per_revolution":
@@ -442,7 +436,7 @@ def rewrite_gcode_file(
         raise InputError(f"cannot read G-code file: {e.strerror}", p) from None
     if o.exists() and o.resolve() == p.resolve():
         raise InputError("the rewritten program must not overwrite the original", o)
-    text, encoding = _decode(raw)
+    text, encoding = decode_gcode(raw)
     result = rewrite_feeds(text, feeds, source=str(path), tools=tools, arc_centers=arc_centers)
     o.parent.mkdir(parents=True, exist_ok=True)
     o.write_bytes(result.text.encode(encoding))

@@ -16,27 +16,28 @@ positive direction) and positions in the plane's two axes. All values here are m
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
-
 from fusioncut.errors import InputError, SourceLocation
+from fusioncut.io.gcode.machine import MAX_MOVES_PER_BLOCK, Machine, Words
+from fusioncut.io.gcode.modal import AXES, PLANE_OFFSET_WORDS, gname
 
-if TYPE_CHECKING:
-    from fusioncut.io.gcode import GCodeInterpreter, _Words
+__all__ = ["canned_cycle"]
 
-_AXES = "xyzabc"
 PECK_CLEARANCE_MM = 0.254  # LinuxCNC's G83_RAPID_DELTA (0.010 in): G73/G83 re-approach this far above
 
 
-def canned_cycle(it: GCodeInterpreter, code: int, w: _Words, loc: SourceLocation) -> None:
-    from fusioncut.io.gcode import _PLANE_OFFSET_WORDS, MAX_MOVES_PER_BLOCK, _gname
-
-    name = _gname(code)
-    plane = it.plane
+def canned_cycle(m: Machine, code: int, w: Words, loc: SourceLocation) -> None:
+    """Expand one block of cycle ``code`` (G code * 10) into moves (see the module doc)."""
+    if m.comp is not None:
+        raise InputError("canned cycles cannot be used with cutter compensation on", loc)
+    if m.feed_mode == "inverse_time":
+        raise InputError("canned cycles cannot be used in inverse time feed (G93)", loc)
+    name = gname(code)
+    plane = m.plane
     ia, ib, ic = plane.axes
-    la, lb, lc = _AXES[ia], _AXES[ib], _AXES[ic]
-    s = it._scale()
-    cyc = it._cycle
-    same = it.motion == code
+    la, lb, lc = AXES[ia], AXES[ib], AXES[ic]
+    s = m.scale()
+    cyc = m.cycle
+    same = m.motion == code
     if any(r in w.vals for r in "abc"):
         raise InputError("rotary axes cannot move in a canned cycle", loc)
     if not same and lc not in w.vals:
@@ -56,17 +57,17 @@ def canned_cycle(it: GCodeInterpreter, code: int, w: _Words, loc: SourceLocation
         if l_word != math.floor(l_word) or l_word < 1:
             raise InputError(f"{name} L (repeats) must be a whole number >= 1, got L{l_word:g}", loc)
         repeats = int(l_word)
-    if not it.feed and it.feed_mode == "units_per_minute":
-        it._feed_missing(loc)
+    if not m.feed and m.feed_mode == "units_per_minute":
+        m.feed_missing(loc)
 
-    pos = it.pos
-    if it._cycle_initial is None:
-        it._cycle_initial = pos[ic]
-    old_cc = it._cycle_initial
+    pos = m.pos
+    if m.cycle_initial is None:
+        m.cycle_initial = pos[ic]
+    old_cc = m.cycle_initial
     current = pos[ic]
-    off = it._offset()
+    off = m.offset()
     a_inc = b_inc = 0.0
-    if it.absolute:
+    if m.absolute:
         r = r_raw + off[ic]
         cc = cc_raw + off[ic]
         av, bv = w.get(la), w.get(lb)
@@ -105,7 +106,7 @@ def canned_cycle(it: GCodeInterpreter, code: int, w: _Words, loc: SourceLocation
         delta = q * s
     offsets = (0.0, 0.0, 0.0)
     if code == 870:
-        oa, ob, oc = _PLANE_OFFSET_WORDS[plane]
+        oa, ob, oc = PLANE_OFFSET_WORDS[plane]
         vals = []
         for letter in (oa, ob, oc):
             v = w.get(letter)
@@ -115,39 +116,39 @@ def canned_cycle(it: GCodeInterpreter, code: int, w: _Words, loc: SourceLocation
                 v = cyc[letter]
             cyc[letter] = v
             vals.append(v * s)
-        k = vals[2] + (cc if not it.absolute else off[ic])
+        k = vals[2] + (cc if not m.absolute else off[ic])
         offsets = (vals[0], vals[1], k)
     if code in (840, 740):
         want = "cw" if code == 840 else "ccw"
-        if it.spindle != want:
+        if m.spindle != want:
             sense = "clockwise (M3)" if want == "cw" else "counter-clockwise (M4)"
             raise InputError(f"{name} needs the spindle turning {sense}", loc)
-    if code in (860, 870, 880) and it.spindle == "off":
+    if code in (860, 870, 880) and m.spindle == "off":
         raise InputError(f"{name} needs the spindle turning", loc)
     del dwell  # dwells take no path; kept above to check and remember P
 
     pecks = (r - cc) / delta if code in (730, 830) else 0.0
     if not pecks <= MAX_MOVES_PER_BLOCK:
         raise InputError(f"{name}: peck depth Q too small for the hole ({pecks:.3g} pecks)", loc)
-    it._budget(repeats * (8 + 3 * math.ceil(pecks)), loc)
+    m.check_block(repeats * (8 + 3 * math.ceil(pecks)), loc)
 
     def point(a: float, b: float, c: float) -> list[float]:
-        e = list(it.pos)
+        e = list(m.pos)
         e[ia], e[ib], e[ic] = a, b, c
         return e
 
     def rapid(a: float, b: float, c: float) -> None:
-        it._linear(point(a, b, c), True, loc)
+        m.linear(point(a, b, c), True, loc)
 
     def feed(a: float, b: float, c: float) -> None:
-        it._linear(point(a, b, c), False, loc)
+        m.linear(point(a, b, c), False, loc)
 
     if old_cc < r:
         # below the R plane: first straight up to it
         rapid(pos[ia], pos[ib], r)
         old_cc = r
         current = r
-    clear = r if not it.retract_old_z else old_cc
+    clear = r if not m.retract_old_z else old_cc
     for _ in range(repeats):
         aa += a_inc
         bb += b_inc
@@ -197,3 +198,4 @@ def canned_cycle(it: GCodeInterpreter, code: int, w: _Words, loc: SourceLocation
         current = clear
     cyc["cc"] = cc_raw
     cyc["r"] = r_raw
+    m.motion = code

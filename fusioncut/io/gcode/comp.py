@@ -27,51 +27,20 @@ Moves that would make the tool gouge (too short, or an inside corner the tool ca
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 from fusioncut.errors import InputError, SourceLocation
+from fusioncut.io.gcode.machine import CompState, HeldMove, Machine, Words
+from fusioncut.io.gcode.modal import gname
+from fusioncut.io.gcode.motion import arc as emit_arc
+from fusioncut.io.gcode.motion import arc_center
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
+from fusioncut.model.units import length_scale
 
-if TYPE_CHECKING:
-    from fusioncut.io.gcode import GCodeInterpreter, _Words
+__all__ = ["arc", "flush", "set_mode", "straight"]
 
 SMALL = 0.05  # LinuxCNC's TOLERANCE_CONCAVE_CORNER, radians: corners closer to straight than this are not corners
 HALF_PI = math.pi / 2
 TWO_PI = 2 * math.pi
-
-
-@dataclass
-class _Item:
-    """A compensated move held back until the next move is known (plane coordinates a, b)."""
-
-    kind: str  # "rapid", "feed", "arc"
-    end: list[float]  # 6 coordinates, machine frame
-    feed: float | None
-    loc: SourceLocation
-    direction: tuple[float, float] = (0.0, 0.0)  # programmed in-plane direction of a straight move
-    center: tuple[float, float] = (0.0, 0.0)
-    turn: int = 0  # LinuxCNC's turn: +-(1 + extra turns), sign = counter-clockwise
-    original_turns: float = 0.0  # programmed sweep (rad) of an arc, to detect gouges
-    rpm: float | None = None
-    tool: int | None = None
-    operation: str = ""
-
-
-@dataclass
-class CompState:
-    side: str  # "left" or "right"
-    radius: float  # mm, >= 0
-    plane: ArcPlane
-    first: bool = True
-    queue: list[_Item] = field(default_factory=list)
-    endpoint: tuple[float, float] | None = None  # where the first held move starts
-    cur: list[float] = field(default_factory=list)  # end of the last held move (compensated)
-    prog: list[float] = field(default_factory=list)  # last programmed point
-
-    @property
-    def left(self) -> bool:
-        return self.side == "left"
 
 
 def _tool_inside(side_left: bool, turn: int) -> bool:
@@ -96,37 +65,34 @@ def _find_turn(x1: float, y1: float, cx: float, cy: float, turn: int, x2: float,
 # --------------------------------------------------------------------------- mode changes
 
 
-def set_mode(it: GCodeInterpreter, group: tuple[int, int], w: _Words) -> None:
-    from fusioncut.io.gcode import _gname
-
+def set_mode(m: Machine, group: tuple[int, int], w: Words) -> None:
     code, col = group
-    where = it._where(col)
+    where = m.where(col)
     if code == 400:
-        comp = it._comp
+        comp = m.comp
         if comp is not None and comp.radius > 0 and not comp.first:
-            _move_endpoint_and_flush(it, comp, comp.cur[comp.plane.axes[0]], comp.cur[comp.plane.axes[1]])
-            _dequeue(it, comp)
+            _move_endpoint_and_flush(m, comp, comp.cur[comp.plane.axes[0]], comp.cur[comp.plane.axes[1]])
+            _dequeue(m, comp)
             # the next move starts where the tool is, but its unspecified axes (and G91 increments)
             # come from the last programmed point; and it must be straight
-            it._base = list(comp.prog)
-            it._arc_not_allowed = True
-        it._comp = None
-        it.comp_side = "off"
+            m.base = list(comp.prog)
+            m.arc_not_allowed = True
+        m.comp = None
         return
-    name = _gname(code)
-    if it.plane not in (ArcPlane.XY, ArcPlane.ZX):
+    name = gname(code)
+    if m.plane not in (ArcPlane.XY, ArcPlane.ZX):
         raise InputError("cutter radius compensation only in the XY (G17) or XZ (G18) plane", where)
-    if it._comp is not None:
+    if m.comp is not None:
         raise InputError("cannot turn cutter radius compensation on when it is already on", where)
     left = code in (410, 411)
     if code in (411, 421):
         d = w.get("d")
         if d is None:
             raise InputError(f"{name} with no D word (the tool diameter)", where)
-        radius = d * it._scale() / 2
+        radius = d * m.scale() / 2
         orientation = w.get("l")
         if orientation is not None and orientation not in (0.0, 9.0):
-            it._unsupported(f"{name} L{orientation:g} (lathe tool orientation) not supported", w.col("l"))
+            m.unsupported(f"{name} L{orientation:g} (lathe tool orientation) not supported", w.col("l"))
     else:
         d = w.get("d")
         if d is not None:
@@ -134,51 +100,50 @@ def set_mode(it: GCodeInterpreter, group: tuple[int, int], w: _Words) -> None:
                 raise InputError(f"{name} requires the D word to be a tool number", where)
             number = int(round(d))
         else:
-            number = it.tool or 0
-        if number in it.tool_radii:
-            radius = it.tool_radii[number]
-        elif it.user_tools is None and number in it._tool_comments:
+            number = m.tool or 0
+        if number in m.tool_radii:
+            radius = m.tool_radii[number]
+        elif m.user_tools is None and number in m.tool_comments:
             # no tools given: the diameter a post wrote in its tool comment, in the program's units
-            radius = it._tool_comments[number][0] / 2 * (25.4 if (it._first_units or "mm") == "inch" else 1.0)
+            radius = m.tool_comments[number].diameter / 2 * length_scale(m.first_units == "inch")
         else:
             msg = (f"{name}: radius of tool {number} unknown (pass tools=..., or use G10 L1 or "
                    f"G41.1/G42.1 D<diameter>); compensation skipped")
-            if it.strict:
+            if m.strict:
                 raise InputError(msg, where)
-            it.warnings.append(f"{where}: {msg}")
+            m.warnings.append(f"{where}: {msg}")
             radius = 0.0
     if radius < 0:
         radius = -radius
         left = not left
-    it._comp = CompState("left" if left else "right", radius, it.plane)
-    it.comp_side = "left" if left else "right"
+    m.comp = CompState("left" if left else "right", radius, m.plane)
 
 
-def flush(it: GCodeInterpreter) -> None:
+def flush(m: Machine) -> None:
     """Release held moves at their planned end points (program stops and end)."""
-    comp = it._comp
+    comp = m.comp
     if comp is not None and comp.queue:
         a, b, _ = comp.plane.axes
-        _move_endpoint_and_flush(it, comp, comp.cur[a], comp.cur[b])
-        _dequeue(it, comp)
+        _move_endpoint_and_flush(m, comp, comp.cur[a], comp.cur[b])
+        _dequeue(m, comp)
 
 
 # --------------------------------------------------------------------------- queue
 
 
-def _dequeue(it: GCodeInterpreter, comp: CompState) -> None:
+def _dequeue(m: Machine, comp: CompState) -> None:
     comp.endpoint = None
     queue, comp.queue = comp.queue, []
     for item in queue:
-        _emit(it, comp, item)
+        _emit(m, comp, item)
 
 
-def _emit(it: GCodeInterpreter, comp: CompState, item: _Item) -> None:
-    p = it.pos
+def _emit(m: Machine, comp: CompState, item: HeldMove) -> None:
+    p = m.pos
     start = (p[0], p[1], p[2])
     end = item.end
     e = (end[0], end[1], end[2])
-    it._check_rotary(end, item.loc)
+    m.check_rotary(end, item.loc)
     mv: Move
     if item.kind == "arc":
         a, b, n = comp.plane.axes
@@ -190,16 +155,16 @@ def _emit(it: GCodeInterpreter, comp: CompState, item: _Item) -> None:
     else:
         mv = LinearMove(start=start, end=e, feed=item.feed, spindle_rpm=item.rpm, tool=item.tool,
                         operation=item.operation, source=item.loc, rapid=item.kind == "rapid")
-    it._push(mv, end)
+    m.push(mv, end)
 
 
-def _move_endpoint_and_flush(it: GCodeInterpreter, comp: CompState, x: float, y: float) -> None:
+def _move_endpoint_and_flush(m: Machine, comp: CompState, x: float, y: float) -> None:
     """Move the in-plane end of every held move to (x, y) (a concave corner), then release them."""
     if not comp.queue:
         return
     a, b, _ = comp.plane.axes
     ep = comp.endpoint
-    mismatch = 0.01 * it._scale()  # LinuxCNC's check is 0.01 in program units
+    mismatch = 0.01 * m.scale()  # LinuxCNC's check is 0.01 in program units
     for item in comp.queue:
         loc = item.loc
         if item.kind == "arc":
@@ -218,35 +183,35 @@ def _move_endpoint_and_flush(it: GCodeInterpreter, comp: CompState, x: float, y:
                 raise InputError(f"{what} in concave corner cannot be reached by the tool without gouging", loc)
         item.end[a] = x
         item.end[b] = y
-    _dequeue(it, comp)
+    _dequeue(m, comp)
     comp.endpoint = (x, y)
 
 
-def _item(it: GCodeInterpreter, kind: str, end: list[float], feed: float | None, loc: SourceLocation,
-          **kw: object) -> _Item:
-    it._pending_op()
-    return _Item(kind, list(end), feed, loc, rpm=it.rpm, tool=it.tool, operation=it.operation, **kw)  # type: ignore[arg-type]
+def _held(m: Machine, kind: str, end: list[float], feed: float | None, loc: SourceLocation,
+          **kw: object) -> HeldMove:
+    """A compensated move ending at ``end`` (copied), with the machine's spindle, tool and operation."""
+    return HeldMove(kind, list(end), feed, loc, rpm=m.rpm, tool=m.tool, operation=m.take_operation(), **kw)  # type: ignore[arg-type]
 
 
 # --------------------------------------------------------------------------- straight moves
 
 
-def straight(it: GCodeInterpreter, end: list[float], rapid: bool, w: _Words, loc: SourceLocation) -> None:
-    comp = it._comp
+def straight(m: Machine, end: list[float], rapid: bool, w: Words, loc: SourceLocation) -> None:
+    comp = m.comp
     assert comp is not None
     if comp.radius == 0:
-        it._linear(end, rapid, loc, w)
+        m.linear(end, rapid, loc, w)
         return
     a, b, n = comp.plane.axes
-    base = it.pos if comp.first else comp.prog
+    base = m.pos if comp.first else comp.prog
     feed = None
     if not rapid:
-        feed = it._feed_rate(math.dist(base[:3], end[:3]), loc, w)
+        feed = m.feed_rate(math.dist(base[:3], end[:3]), loc, w)
     kind = "rapid" if rapid else "feed"
     r = comp.radius
     px, py = end[a], end[b]
     if comp.first:
-        cx, cy = it.pos[a], it.pos[b]
+        cx, cy = m.pos[a], m.pos[b]
         if math.hypot(px - cx, py - cy) <= r:
             raise InputError("cutter compensation entry move is not longer than the tool radius", loc)
         alpha = math.atan2(py - cy, px - cx) + (HALF_PI if comp.left else -HALF_PI)
@@ -255,10 +220,7 @@ def straight(it: GCodeInterpreter, end: list[float], rapid: bool, w: _Words, loc
         cur[b] = py + r * math.sin(alpha)
         comp.endpoint = (cx, cy)
         # LinuxCNC records the offset direction here; an entry move is long enough not to reverse
-        comp.queue.append(_item(it, kind, cur, feed, loc, direction=(math.cos(alpha), math.sin(alpha))))
-        comp.first = False
-        comp.cur = cur
-        comp.prog = list(end)
+        comp.hold(_held(m, kind, cur, feed, loc, direction=(math.cos(alpha), math.sin(alpha))), end)
         return
     cx, cy = comp.cur[a], comp.cur[b]
     opx, opy = comp.prog[a], comp.prog[b]
@@ -266,7 +228,7 @@ def straight(it: GCodeInterpreter, end: list[float], rapid: bool, w: _Words, loc
     if px == opx and py == opy:
         # no motion in the plane: stay at the compensated point
         cur[a], cur[b] = cx, cy
-        comp.queue.append(_item(it, kind, cur, feed, loc, direction=(0.0, 0.0)))
+        comp.hold(_held(m, kind, cur, feed, loc, direction=(0.0, 0.0)), end)
     else:
         theta = math.atan2(cy - opy, cx - opx)
         alpha = math.atan2(py - opy, px - opx)
@@ -295,16 +257,16 @@ def straight(it: GCodeInterpreter, end: list[float], rapid: bool, w: _Words, loc
             concave = False
         if not concave and beta > SMALL:
             # convex corner: go round it on an arc of the tool radius about the programmed corner
-            _move_endpoint_and_flush(it, comp, cx, cy)
+            _move_endpoint_and_flush(m, comp, cx, cy)
             corner = list(end)
             corner[a], corner[b], corner[n] = mx, my, comp.cur[n]
             if not rapid:
-                comp.queue.append(_item(it, "arc", corner, feed, loc, center=(opx, opy),
+                comp.queue.append(_held(m, "arc", corner, feed, loc, center=(opx, opy),
                                         turn=-1 if comp.left else 1))
             else:
                 # there is no rapid arc; a traverse at least runs parallel to the programmed one
-                comp.queue.append(_item(it, "rapid", corner, None, loc))
-            _dequeue(it, comp)
+                comp.queue.append(_held(m, "rapid", corner, None, loc))
+            _dequeue(m, comp)
             comp.endpoint = (mx, my)
         elif concave:
             if front is None or front.kind != "arc":
@@ -314,21 +276,19 @@ def straight(it: GCodeInterpreter, end: list[float], rapid: bool, w: _Words, loc
                 retreat = r / math.tan(half_corner)
                 mx = cx + retreat * math.cos(theta + gamma)
                 my = cy + retreat * math.sin(theta + gamma)
-                _move_endpoint_and_flush(it, comp, mx, my)
+                _move_endpoint_and_flush(m, comp, mx, my)
             else:
                 mx, my = _arc_to_line_corner(comp, front, px, py, opx, opy, loc)
-                _move_endpoint_and_flush(it, comp, mx, my)
+                _move_endpoint_and_flush(m, comp, mx, my)
         else:
             # straight on (or tangent from an arc): nothing to adjust
-            _dequeue(it, comp)
+            _dequeue(m, comp)
             comp.endpoint = (cx, cy)
         cur[a], cur[b] = ex, ey
-        comp.queue.append(_item(it, kind, cur, feed, loc, direction=(px - opx, py - opy)))
-    comp.cur = cur
-    comp.prog = list(end)
+        comp.hold(_held(m, kind, cur, feed, loc, direction=(px - opx, py - opy)), end)
 
 
-def _arc_to_line_corner(comp: CompState, prev: _Item, px: float, py: float, opx: float, opy: float,
+def _arc_to_line_corner(comp: CompState, prev: HeldMove, px: float, py: float, opx: float, opy: float,
                         loc: SourceLocation) -> tuple[float, float]:
     """Where the held (compensated) arc meets the offset of the new line in a concave corner."""
     a, b, _ = comp.plane.axes
@@ -356,26 +316,26 @@ def _arc_to_line_corner(comp: CompState, prev: _Item, px: float, py: float, opx:
 # --------------------------------------------------------------------------- arcs
 
 
-def arc(it: GCodeInterpreter, end: list[float], cw: bool, turns: int, w: _Words, loc: SourceLocation) -> None:
-    comp = it._comp
+def arc(m: Machine, end: list[float], cw: bool, turns: int, w: Words, loc: SourceLocation) -> None:
+    comp = m.comp
     assert comp is not None
     if comp.radius == 0:
-        center = it._arc_center(end, cw, w, loc, it.pos)
-        it._arc(end, center, cw, turns, loc, w)
+        center = arc_center(m, end, cw, w, loc, m.pos)
+        emit_arc(m, end, center, cw, turns, loc, w)
         return
     a, b, n = comp.plane.axes
     r = comp.radius
     turn = (-1 if cw else 1) * (turns + 1)
     px, py = end[a], end[b]
     if comp.first:
-        cx, cy = it.pos[a], it.pos[b]
+        cx, cy = m.pos[a], m.pos[b]
         if math.hypot(px - cx, py - cy) <= r:
             raise InputError("radius of cutter compensation entry arc is not greater than the tool radius", loc)
-        center = it._arc_center(end, cw, w, loc, it.pos)
+        center = arc_center(m, end, cw, w, loc, m.pos)
         arc_r = math.hypot(center[0] - cx, center[1] - cy)
         if arc_r <= r and _tool_inside(comp.left, turn):
             raise InputError("tool radius not less than arc radius with cutter compensation", loc)
-        feed = it._feed_rate(_arc_length(it.pos, end, center, turn, comp.plane), loc, w)
+        feed = m.feed_rate(_arc_length(m.pos, end, center, turn, comp.plane), loc, w)
         if _tool_inside(comp.left, turn):
             gamma = math.atan2(center[1] - py, center[0] - px)
         else:
@@ -394,18 +354,15 @@ def arc(it: GCodeInterpreter, end: list[float], cw: bool, turns: int, w: _Words,
         ncy = ey + c_len * math.sin(ab_ang)
         cur = list(end)
         cur[a], cur[b] = ex, ey
-        comp.queue.append(_item(it, "arc", cur, feed, loc, center=(ncx, ncy), turn=turn,
-                                original_turns=_find_turn(cx, cy, ncx, ncy, turn, ex, ey)))
-        comp.first = False
-        comp.cur = cur
-        comp.prog = list(end)
+        comp.hold(_held(m, "arc", cur, feed, loc, center=(ncx, ncy), turn=turn,
+                        original_turns=_find_turn(cx, cy, ncx, ncy, turn, ex, ey)), end)
         return
 
     opx, opy = comp.prog[a], comp.prog[b]
     cx, cy = comp.cur[a], comp.cur[b]
-    center = it._arc_center(end, cw, w, loc, comp.prog)
+    center = arc_center(m, end, cw, w, loc, comp.prog)
     ccx, ccy = center
-    feed = it._feed_rate(_arc_length(comp.prog, end, center, turn, comp.plane), loc, w)
+    feed = m.feed_rate(_arc_length(comp.prog, end, center, turn, comp.plane), loc, w)
     arc_radius = math.hypot(ccx - px, ccy - py)
     theta = math.atan2(cy - opy, cx - opx)
     theta = theta - HALF_PI if comp.left else theta + HALF_PI
@@ -464,25 +421,21 @@ def arc(it: GCodeInterpreter, end: list[float], cw: bool, turns: int, w: _Words,
                 direction = cc_dir - pullback if turn > 0 else cc_dir + pullback
             mx = front.center[0] + oldrad * math.cos(direction)
             my = front.center[1] + oldrad * math.sin(direction)
-        _move_endpoint_and_flush(it, comp, mx, my)
-        comp.queue.append(_item(it, "arc", cur, feed, loc, center=center, turn=turn, original_turns=main_turns))
+        _move_endpoint_and_flush(m, comp, mx, my)
     elif beta > SMALL:
         # convex: an arc of the tool radius round the programmed corner, then the offset arc
         mx = opx + r * math.cos(delta)
         my = opy + r * math.sin(delta)
-        _dequeue(it, comp)
+        _dequeue(m, comp)
         corner = list(end)
         corner[a], corner[b], corner[n] = mx, my, comp.cur[n]
-        comp.queue.append(_item(it, "arc", corner, feed, loc, center=(opx, opy), turn=-1 if comp.left else 1))
-        _dequeue(it, comp)
+        comp.queue.append(_held(m, "arc", corner, feed, loc, center=(opx, opy), turn=-1 if comp.left else 1))
+        _dequeue(m, comp)
         comp.endpoint = (mx, my)
-        comp.queue.append(_item(it, "arc", cur, feed, loc, center=center, turn=turn, original_turns=main_turns))
     else:
-        _dequeue(it, comp)
+        _dequeue(m, comp)
         comp.endpoint = (cx, cy)
-        comp.queue.append(_item(it, "arc", cur, feed, loc, center=center, turn=turn, original_turns=main_turns))
-    comp.cur = cur
-    comp.prog = list(end)
+    comp.hold(_held(m, "arc", cur, feed, loc, center=center, turn=turn, original_turns=main_turns), end)
 
 
 def _fits(ratio: float, loc: SourceLocation) -> None:
