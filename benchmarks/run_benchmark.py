@@ -40,7 +40,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from titan_program import FULL, QUICK, STOCK_MAX, STOCK_MIN, ProgramSize, titan_program  # noqa: E402
 
 from fusioncut.engines.base import EngineOptions  # noqa: E402
-from fusioncut.engines.brep.engine import BRepEngine, cl_sequence  # noqa: E402
+from fusioncut.engines.brep.engine import BRepEngine  # noqa: E402
+from fusioncut.engines.cl_maps import cl_sequence  # noqa: E402
 from fusioncut.engines.brep.export import whole_ipw  # noqa: E402
 from fusioncut.engines.brep.parallel import ParallelBRepEngine, peak_rss_mb  # noqa: E402
 from fusioncut.io.gcode import read_gcode  # noqa: E402

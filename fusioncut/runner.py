@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from fusioncut import __version__
-from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.base import Engine, EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.segments import segments_for
 from fusioncut.engines.sizing import Budget, size_toolpath
@@ -271,17 +271,14 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
             result = _run(engine, ctrl_c, toolpath, stock, out_dir, default_tool, job_id, on_cl, resume,
                           checkpoint_every, snapshot_cls, export_ipw, on_start, budget)
         finally:
-            if not isinstance(engine, BRepEngine):
-                engine.close()
+            engine.close()
     result.seconds = time.perf_counter() - t0
     return result
 
 
-def _engine(options: EngineOptions, workers: int, scheduler: str | None) -> Any:
+def _engine(options: EngineOptions, workers: int, scheduler: str | None) -> Engine:
     """The engine for these run options: :class:`BRepEngine`, or the parallel one with its Dask
-    client open (an unreachable scheduler fails here, before anything is written). Both offer what
-    the runner uses: start, process, save/load_checkpoint, ipw, ipw_volume, stock_volume and
-    removed_total."""
+    client open (an unreachable scheduler fails here, before anything is written)."""
     if workers <= 1 and not scheduler:
         return BRepEngine(options)
     if _inside_dask_worker():
@@ -313,7 +310,7 @@ def _inside_dask_worker() -> bool:
     return True
 
 
-def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir: Path,
+def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir: Path,
          default_tool: MillingTool | None, job_id: str, on_cl: Callable[[EngagementMap, int], None] | None,
          resume: bool, checkpoint_every: int, snapshot_cls: Iterable[int], export_ipw: bool,
          on_start: Callable[[RunPlan], None] | None, budget: Budget | None = None) -> RunResult:
@@ -328,8 +325,7 @@ def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir:
 
     start_at, kept_rows = (_resume_point(engine, out_dir, job_id, total) if resume else (0, []))
     if start_at == 0:
-        if not isinstance(engine, BRepEngine) and options.cell_size is None:
-            # the workers share the workpiece out by cells: without cells one worker would do it all
+        if engine.shares_cells and options.cell_size is None:
             engine.options = replace(options, cell_size=PARALLEL_CELL_SIZE)
             log.info("parallel run: the workpiece is kept as %g mm cells (the job asks for none)",
                      PARALLEL_CELL_SIZE)
@@ -409,7 +405,7 @@ def _run(engine: Any, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_dir:
                      interrupted, start_at, exported)
 
 
-def _save_checkpoint(engine: Any, ck_dir: Path, next_cl: int) -> bool:
+def _save_checkpoint(engine: Engine, ck_dir: Path, next_cl: int) -> bool:
     """Write the engine's checkpoint before CL ``next_cl``; a failure (the kernel refusing to rebuild a
     cell's faces, a full disk) is logged naming the CL and the run goes on: the results stay right,
     only a resume starts from the last checkpoint that was written (each is written whole or not at all)."""
@@ -434,7 +430,7 @@ def _log_cl(m: EngagementMap) -> None:
                   m.status.value, m.sweep_method or "-", times)
 
 
-def _export(engine: Any, paths: list[Path]) -> list[Path]:
+def _export(engine: Engine, paths: list[Path]) -> list[Path]:
     """Write the current IPW to each path (.step or .stl); a failure is logged, not raised, because
     the results are complete without it."""
     from fusioncut.engines.brep.export import export_ipw
@@ -465,7 +461,7 @@ def _write_run_state(ck_dir: Path, job_id: str, cell_size: float | None) -> None
     os.replace(tmp, ck_dir / RUN_STATE)
 
 
-def _continue_with_checkpoint_cells(engine: Any, ck_dir: Path) -> None:
+def _continue_with_checkpoint_cells(engine: Engine, ck_dir: Path) -> None:
     """Give the engine the cell size of the run that wrote the checkpoint.
 
     Its cells are what was loaded, whatever this run's options say: a parallel run without a job
@@ -479,7 +475,7 @@ def _continue_with_checkpoint_cells(engine: Any, ck_dir: Path) -> None:
     if "cell_size" not in state:
         return
     cell_size = state["cell_size"]
-    if cell_size is None and not isinstance(engine, BRepEngine):
+    if cell_size is None and engine.shares_cells:
         log.warning("the checkpoint in %s keeps the workpiece whole, so one worker does all the work; --fresh "
                     "starts over with cells shared out among the workers", ck_dir)
     elif cell_size != engine.options.cell_size:
@@ -488,7 +484,7 @@ def _continue_with_checkpoint_cells(engine: Any, ck_dir: Path) -> None:
     engine.options = replace(engine.options, cell_size=cell_size)
 
 
-def _resume_point(engine: Any, out_dir: Path, job_id: str, total: int) -> tuple[int, list[dict[str, Any]]]:
+def _resume_point(engine: Engine, out_dir: Path, job_id: str, total: int) -> tuple[int, list[dict[str, Any]]]:
     """(first CL to compute, kept ``cl`` rows) from a checkpoint in ``out_dir``; (0, []) to start over.
 
     Loads the engine state on success. The checkpoint must be of the same job hash and FusionCut

@@ -33,7 +33,8 @@ def test_quick_program_workpiece_stays_small_past_the_helix_where_a_merge_left_a
     from titan_program import STOCK_MAX, STOCK_MIN, ProgramSize, titan_program
 
     from fusioncut.engines.base import EngineOptions
-    from fusioncut.engines.brep.engine import BRepEngine, cl_sequence
+    from fusioncut.engines.brep.engine import BRepEngine
+    from fusioncut.engines.cl_maps import cl_sequence
     from fusioncut.engines.brep.occ import count_faces
     from fusioncut.io.gcode import read_gcode
     from fusioncut.model import BoxStock, CLStatus

@@ -25,6 +25,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from OCP.BOPAlgo import BOPAlgo_Builder
 from OCP.BRep import BRep_Tool
@@ -242,13 +243,22 @@ class LayerCut:
     lost: float = 0.0
 
 
+class StackCut(NamedTuple):
+    """A stack after a cut: its ``layers``, the volume ``removed`` (mm³) and the ``cuts`` of the
+    layers that lost material (empty: the stack lost nothing)."""
+
+    layers: tuple[Layer, ...]
+    removed: float
+    cuts: list[LayerCut]
+
+
 def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape | planar.Region, z_tip: float, z_top: float,
               fuzzy_values: tuple[float, ...], clear_from: float | None = None,
-              ) -> tuple[tuple[Layer, ...], float, list[LayerCut]]:
+              ) -> StackCut:
     """The stack after removing the prism of ``region`` (faces or an outline at z = 0) from
     ``z_tip`` to ``z_top`` (mm).
 
-    Returns (new layers, removed volume in mm³, the cuts of the layers that lost material).
+    Returns the new layers, the removed volume (mm³) and the cuts of the layers that lost material.
     ``z_top`` must reach the stack's top (the regions stay nested). ``clear_from``: a height (mm)
     above which this very region was already taken from the stack (material only ever goes, so
     layers from there up lose nothing and are not cut). Each layer whose region is lines and arcs,
@@ -304,7 +314,7 @@ def cut_stack(layers: tuple[Layer, ...], region: TopoDS_Shape | planar.Region, z
         if new is not None:
             out.append(new)
         cuts.append(LayerCut(z_lo, la.z_hi, new, op, face if op is not None else None, kept, lost))
-    return _joined(out), removed, cuts
+    return StackCut(_joined(out), removed, cuts)
 
 
 def _joined(layers: list[Layer]) -> tuple[Layer, ...]:

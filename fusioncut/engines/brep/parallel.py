@@ -20,9 +20,8 @@ equal the single-process engine's (sums may differ in the last bit by their orde
 when a Boolean fails on one worker's cells the others have already cut theirs; the CL is reported
 FAILED with the volume that was removed, so volume still adds up.
 
-The engine offers what :func:`fusioncut.runner.run_toolpath` uses of :class:`BRepEngine`: ``start``,
-``process`` (also from a resumed CL), ``save_checkpoint`` / ``load_checkpoint`` in the same files
-(so a checkpoint of either engine resumes in the other), ``ipw``, ``ipw_volume``. Shapes cross
+The engine implements :class:`~fusioncut.engines.base.Engine` as :class:`BRepEngine` does, with
+checkpoints in the same files (so a checkpoint of either engine resumes in the other). Shapes cross
 processes as binary BRep bytes, only when the workers are seeded and when the driver asks for the
 workpiece. Workers run batches ahead of the CLs the driver has handed out, so they keep the
 state of their cells after every CL of the batches since the one being handed out: a checkpoint,
@@ -51,13 +50,13 @@ from typing import Any
 from OCP.BinTools import BinTools
 from OCP.TopoDS import TopoDS_Shape
 
-from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.base import EngineKind, EngineOptions
+from fusioncut.engines.brep.cells import Cell, Square
 from fusioncut.engines.brep.contact import merge_arcs, slice_intervals
-from fusioncut.engines.brep.engine import (
-    BRepEngine, Cell, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights,
-)
+from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.occ import children, compound, volume
-from fusioncut.errors import InputError
+from fusioncut.engines.cl_maps import CL, CutOutcome, SliceHeight, cl_sequence, engagement_map, slice_heights
+from fusioncut.errors import EngineStateError, InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.moves import Toolpath
 from fusioncut.model.stock import Stock
@@ -72,7 +71,7 @@ WORKERS_TIMEOUT_S = 60
 # -- cells as bytes ---------------------------------------------------------------------------------
 
 
-def pack_cells(cells: list[Cell]) -> tuple[bytes, list[tuple[int, tuple[float, float, float] | None]]]:
+def pack_cells(cells: list[Cell]) -> tuple[bytes, list[tuple[int, Square | None]]]:
     """Cells as the checkpoint writes them (one compound child per cell, an empty compound for a
     cell cut away, binary BRep: doubles kept exactly) and per cell its face count at the last merge
     and its grid square."""
@@ -81,16 +80,11 @@ def pack_cells(cells: list[Cell]) -> tuple[bytes, list[tuple[int, tuple[float, f
     return stream.getvalue(), [(c.faces_at_merge, c.square) for c in cells]
 
 
-def unpack_cells(data: bytes, records: list[tuple[int, tuple[float, float, float] | None]]) -> list[Cell]:
+def unpack_cells(data: bytes, records: list[tuple[int, Square | None]]) -> list[Cell]:
     """The cells of :func:`pack_cells`, rebuilt as :meth:`BRepEngine.load_checkpoint` rebuilds them."""
     shape = TopoDS_Shape()
     BinTools.Read_s(shape, io.BytesIO(data))
-    cells = []
-    for child, (merged, square) in zip(children(shape), records, strict=True):
-        cell = Cell(None, None, merged, square=square)
-        cell.set(child)
-        cells.append(cell)
-    return cells
+    return [Cell.of_solid(child, square, merged) for child, (merged, square) in zip(children(shape), records, strict=True)]
 
 
 def cell_records(cells: list[Cell], previous: list[Cell] | None = None) -> list[Cell]:
@@ -122,7 +116,7 @@ class PartitionWorker:
         self.engine.adopt_layers()
         # the whole stock's: the engine's "nothing removed" threshold is relative to it
         self.engine.stock_volume = stock_volume
-        self.sequence = list(cl_sequence(toolpath, options, default_tool))
+        self.sequence: list[CL] = list(cl_sequence(toolpath, options, default_tool))
         self.contacts: dict[int, list] = {}  # CL index -> flute contact faces, until sliced
         self.position = position  # the first CL these cells have not seen
         # CL index -> the cells before that CL, over the last ``kept_batches`` batches cut
@@ -132,7 +126,7 @@ class PartitionWorker:
 
     def cut_batch(self, start: int, stop: int) -> list[CutOutcome]:
         if start != self.position:
-            raise ValueError(f"the worker's cells are at CL {self.position}, not {start}")
+            raise EngineStateError(f"the worker's cells are at CL {self.position}, not {start}")
         self._starts.append(start)
         if len(self._starts) > self.kept_batches:
             self._starts.popleft()
@@ -169,7 +163,7 @@ class PartitionWorker:
             flute = self.contacts.get(index)
             if flute is None:
                 continue
-            tip = self.sequence[index][1].end
+            tip = self.sequence[index].move.end
             try:
                 out[index] = [slice_intervals(flute, tip, z) for z in zs]
             except Exception as exc:  # noqa: BLE001
@@ -182,7 +176,7 @@ class PartitionWorker:
             return self.engine.cells
         if next_cl in self.history:
             return self.history[next_cl]
-        raise ValueError(f"the worker keeps its cells at CL {self.position} and within its last "
+        raise EngineStateError(f"the worker keeps its cells at CL {self.position} and within its last "
                          f"{self.kept_batches} batches, not at {next_cl}")
 
     def cells_at(self, next_cl: int) -> tuple[bytes, list[int]]:
@@ -320,7 +314,16 @@ class ParallelBRepEngine:
             except Exception:  # noqa: BLE001 - nothing is left to do with it
                 log.warning("closing the Dask %s failed", type(what).__name__, exc_info=True)
 
-    # -- the engine interface of the runner -----------------------------------------------------------
+    # -- the Engine protocol ------------------------------------------------------------------------------
+    @property
+    def kind(self) -> EngineKind:
+        return EngineKind.PARALLEL_BREP
+
+    @property
+    def shares_cells(self) -> bool:
+        """The workers share the workpiece out by cells: without cells one worker would do it all."""
+        return True
+
     def start(self, stock: Stock | TopoDS_Shape) -> None:
         """Cut the stock into cells here (the runner checks the stock before writing anything)."""
         whole = BRepEngine(self.options)
@@ -343,7 +346,7 @@ class ParallelBRepEngine:
     def save_checkpoint(self, folder: Path, next_cl: int) -> None:
         """:meth:`BRepEngine.save_checkpoint` of the workpiece after the last CL handed out."""
         if next_cl != self._next:
-            raise ValueError(f"the engine state is at CL {self._next}, a checkpoint at CL {next_cl} would lie")
+            raise EngineStateError(f"the engine state is at CL {self._next}, a checkpoint at CL {next_cl} would lie")
         BRepEngine(self.options, self._gather(), self.stock_volume, self.removed_total).save_checkpoint(folder, next_cl)
 
     @property
@@ -411,7 +414,7 @@ class ParallelBRepEngine:
         mark = time.perf_counter()
         while handed < len(batches):
             if not running:
-                raise RuntimeError(f"the parallel engine stalled at batch {handed} of {len(batches)}")
+                raise EngineStateError(f"the parallel engine stalled at batch {handed} of {len(batches)}")
             self._wait_any(list(running))
             for future in [f for f in running if f.done()]:
                 k, sliced, cutting = running.pop(future)
@@ -452,7 +455,7 @@ class ParallelBRepEngine:
 
         self._client.sync(first)
 
-    def _merge(self, sequence: list, start: int,
+    def _merge(self, sequence: list[CL], start: int,
                per_worker: list[list[CutOutcome]]) -> tuple[list[CutOutcome], dict, dict]:
         """A batch's outcomes merged over the workers, its slice plans and the heights to ask for."""
         outcomes = []
@@ -461,17 +464,18 @@ class ParallelBRepEngine:
             for other in per_worker[1:]:
                 outcome = outcome.merged(other[k])
             outcomes.append(outcome)
-        plans = {start + k: slice_heights(o.z_range, sequence[start + k][2], self.options.slice_height)
+        plans = {start + k: slice_heights(o.z_range, sequence[start + k].tool, self.options.slice_height)
                  for k, o in enumerate(outcomes)}
         asks = {i: [z for z, active in plan if active] for i, plan in plans.items() if plan}
         return outcomes, plans, asks
 
-    def _hand_out(self, sequence: list, start: int, outcomes: list[CutOutcome], plans: dict, asks: dict,
-                  answers: list[dict], wall: float) -> Iterator[EngagementMap]:
+    def _hand_out(self, sequence: list[CL], start: int, outcomes: list[CutOutcome],
+                  plans: dict[int, list[SliceHeight]], asks: dict, answers: list[dict],
+                  wall: float) -> Iterator[EngagementMap]:
         """The engagement maps of a batch, from the merged outcomes and the workers' arcs."""
         for k, outcome in enumerate(outcomes):
-            index, move, tool, feed_angle = sequence[start + k]
-            plan = plans[index]
+            cl = sequence[start + k]
+            index, plan = cl.index, plans[cl.index]
             active_arcs: list[list[tuple[float, float]]] = [[] for _ in asks.get(index, [])]
             for answer in answers:
                 got = answer.get(index, [])
@@ -486,8 +490,7 @@ class ParallelBRepEngine:
             self.removed_total += outcome.removed
             # before the yield: whoever gets this CL sees the workpiece after it
             self._next = index + 1
-            yield engagement_map(cl_base(index, move, tool, feed_angle), tool, move, outcome, plan, arcs,
-                                 self.options.slice_height, self.options.min_chip_thickness)
+            yield engagement_map(cl, outcome, plan, arcs, self.options.slice_height, self.options.min_chip_thickness)
 
     # -- internals --------------------------------------------------------------------------------------
     def _seed(self, toolpath: Toolpath, default_tool: MillingTool | None, start_at: int) -> None:
@@ -517,7 +520,7 @@ class ParallelBRepEngine:
         """The cells after the last CL handed out, in cell order (fetched from the workers)."""
         if not self._actors:
             if self._cells is None:
-                raise RuntimeError("the workers that held the workpiece are closed")
+                raise EngineStateError("the workers that held the workpiece are closed")
             return self._cells
         answers = [unpack_cells(*f.result()) for f in [a.cells_at(self._next) for a in self._actors]]
         if any(len(ids) != len(got) for ids, got in zip(self._parts, answers)):

@@ -54,6 +54,7 @@ from fusioncut.engines.brep import planar
 from fusioncut.engines.brep.occ import (
     faces, fuse_all, moved_copy, placement, planar_face, pnt, solids, unify, volume, wire_from_points,
 )
+from fusioncut.engines.base import SweepMethod
 from fusioncut.engines.ceiling import tool_radii
 from fusioncut.errors import KernelFailure, SourceLocation
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
@@ -69,10 +70,10 @@ Z = (0.0, 0.0, 1.0)
 
 @dataclass(frozen=True)
 class SweptVolume:
-    """The solid a tool sweeps over one CL segment, and how it was built (``exact``/``sampled``)."""
+    """The solid a tool sweeps over one CL segment, and how it was built (exact or sampled)."""
 
     shape: TopoDS_Shape
-    method: str
+    method: SweepMethod
 
 
 def _frame_point(o: Vec3, a: Vec3, r: float, z: float) -> Vec3:
@@ -535,7 +536,7 @@ def _line_sweep_volume_bound(tool: MillingTool, move: Move) -> float:
     return (tool_volume(tool) + 2.0 * length * shadow) * (1 + 1e-6)
 
 
-def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: float = 0.0,
+def swept_volume(tool: MillingTool, move: Move, method: SweepMethod = SweepMethod.EXACT, seam: float = 0.0,
                  open_start: bool = False) -> SweptVolume:
     """The solid swept by ``tool`` along ``move`` (a line, or an arc in the XY plane).
 
@@ -547,14 +548,14 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
     neighbouring row's groove (a sphere against a cylinder: 2.5–6 ms of the kernel's intersections
     each; a plane across the groove meets it in arcs).
     """
-    if method == "sampled":
-        return SweptVolume(sampled_sweep(tool, move, seam), "sampled")
+    if method == SweepMethod.SAMPLED:
+        return SweptVolume(sampled_sweep(tool, move, seam), SweepMethod.SAMPLED)
     if isinstance(move, ArcMove) and (move.plane != ArcPlane.XY or move.is_helix):
         raise ValueError("helices and ZX/YZ arcs must be split into chords first")
     move = _straightened(move, tool_radii(tool)[0])
     p0, p1 = move.start, move.end
     if not isinstance(move, ArcMove) and math.hypot(p1[0] - p0[0], p1[1] - p0[1]) < _SHORT and abs(p1[2] - p0[2]) < _EPS:
-        return SweptVolume(placed_tool(tool, p1, seam), "exact")
+        return SweptVolume(placed_tool(tool, p1, seam), SweepMethod.EXACT)
     cyl = cylinder_tool(tool)
     shape: TopoDS_Shape | None
     if cyl:
@@ -569,5 +570,5 @@ def swept_volume(tool: MillingTool, move: Move, method: str = "exact", seam: flo
     if shape is None or not solids(shape):
         # no exact construction for this tool and move, or the kernel built nothing (seen on
         # steep chords of a few µm): the published method's sampled sweep, reported as such
-        return SweptVolume(sampled_sweep(tool, move, seam), "sampled")
-    return SweptVolume(shape, "exact")
+        return SweptVolume(sampled_sweep(tool, move, seam), SweepMethod.SAMPLED)
+    return SweptVolume(shape, SweepMethod.EXACT)

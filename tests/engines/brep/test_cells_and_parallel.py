@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
-from fusioncut.engines.brep.engine import BRepEngine, cl_sequence
+from fusioncut.engines.brep.engine import BRepEngine
+from fusioncut.engines.cl_maps import cl_sequence
 from fusioncut.model import ArcMove, BoxStock, CLStatus, FlatEndMill, LinearMove, Toolpath
 
 STOCK = BoxStock((0.0, 0.0, -12.0), (50.0, 40.0, 0.0))
@@ -179,14 +180,14 @@ def test_solid_cells_split_into_quarters_equal_unsplit_cells(monkeypatch):
     its four 20 mm cells go solid. Level slots after it split them into quarters, and those away
     from the staircase take the layers; CL by CL the results equal an engine that never splits,
     and volume adds up."""
-    import fusioncut.engines.brep.engine as engine_module
+    import fusioncut.engines.brep.cells as cells_module
     from test_helical_entry import STOCK as BLOCK
 
     tp = staircase_and_slots()
     options = EngineOptions(ramp_step=0.2, max_segment_length=2.0, max_layers=6)
     runs = {}
-    for split in (1, engine_module.MAX_SPLIT):
-        monkeypatch.setattr(engine_module, "MAX_SPLIT", split)
+    for split in (1, cells_module.MAX_SPLIT):
+        monkeypatch.setattr(cells_module, "MAX_SPLIT", split)
         engine = BRepEngine(options)
         runs[split] = list(engine.run(tp, BLOCK))
         conserved(engine)
@@ -196,7 +197,7 @@ def test_solid_cells_split_into_quarters_equal_unsplit_cells(monkeypatch):
         else:
             assert sizes[0] < 20.0  # quartered...
             assert any(c.layers is not None and c.square[2] < 20.0 for c in engine.cells)  # ...and layered again
-    assert_same(runs[engine_module.MAX_SPLIT], runs[1])
+    assert_same(runs[cells_module.MAX_SPLIT], runs[1])
 
 
 def test_a_staircase_stays_layered_and_equals_its_solid_cells():
@@ -242,7 +243,7 @@ coord = st.floats(-30.0, 30.0, allow_nan=False)
 @settings(max_examples=200, deadline=None)
 @given(coord, coord, coord, coord, coord, coord, st.floats(0.0, 20.0))
 def test_segment_box_distance_is_the_brute_force_one(ax, ay, bx, by, x0, y0, size):
-    from fusioncut.engines.brep.engine import _segment_box_distance
+    from fusioncut.engines.brep.cells import segment_box_distance
 
     t = np.linspace(0.0, 1.0, 4001)
     px, py = ax + t * (bx - ax), ay + t * (by - ay)
@@ -252,7 +253,7 @@ def test_segment_box_distance_is_the_brute_force_one(ax, ay, bx, by, x0, y0, siz
     ry = np.concatenate([np.full_like(u, y0), np.full_like(u, y0 + size), y0 + u, y0 + u])
     inside = np.any((px >= x0) & (px <= x0 + size) & (py >= y0) & (py <= y0 + size))
     brute = 0.0 if inside else np.sqrt(np.min((px[:, None] - rx[None, :]) ** 2 + (py[:, None] - ry[None, :]) ** 2))
-    got = _segment_box_distance((ax, ay), (bx, by), (x0, y0, x0 + size, y0 + size))
+    got = segment_box_distance((ax, ay), (bx, by), (x0, y0, x0 + size, y0 + size))
     step = math.hypot(bx - ax, by - ay) / 4000 + size / 400
     assert brute - step - 1e-9 <= got <= brute + 1e-9
 
@@ -275,7 +276,7 @@ def test_a_ball_raster_along_cell_walls_skips_the_columns_it_only_touches(monkey
     path = Toolpath(tuple(moves), {1: tool})
     whole = list(BRepEngine(EngineOptions(cell_size=None, fuzzy=1e-6, ceiling_pixel=None)).run(path, STOCK))
     behind, beside = [], set()
-    clear_of = engine_module._column_clear_of
+    clear_of = engine_module.column_clear_of
 
     def counted(square, motion, reach, open_start):
         skip = clear_of(square, motion, reach, open_start)
@@ -285,7 +286,7 @@ def test_a_ball_raster_along_cell_walls_skips_the_columns_it_only_touches(monkey
             beside.add((square, motion.start))
         return skip
 
-    monkeypatch.setattr(engine_module, "_column_clear_of", counted)
+    monkeypatch.setattr(engine_module, "column_clear_of", counted)
     engine = BRepEngine(EngineOptions(cell_size=5.0, fuzzy=1e-6))
     fast = list(engine.run(path, STOCK))
     assert_same(fast, whole)

@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep import engine as engine_mod
 from fusioncut.engines.brep.engine import BRepEngine
+from fusioncut.engines.brep.solid_cut import SolidCutter
 from fusioncut.engines.brep.layers import cut_stack, solid_layers, stack_solid, stack_volume
 from fusioncut.engines.brep.occ import MERGE_TOLERANCE, area, max_tolerance, volume
 from fusioncut.engines.brep.stock import stock_solid
@@ -147,13 +148,13 @@ def test_a_slot_on_a_cell_wall_tangent_to_a_plunge_hole_is_cut_joined_with_the_n
     inside and rebuilt the cell 25 mm³ larger, at every fuzzy value and with the seams turned;
     joined with the cell beside it the Boolean is right: the same maps as the layered engine."""
     joins = []
-    real = BRepEngine._subtract_joined
+    real = SolidCutter.subtract_joined
 
     def spy(self, cell, *args):
         joins.append(cell.square)
         return real(self, cell, *args)
 
-    monkeypatch.setattr(BRepEngine, "_subtract_joined", spy)
+    monkeypatch.setattr(SolidCutter, "subtract_joined", spy)
     _layered_equals_solid([(34.0, 4.5, -1.0), (34.0, 0.0, -1.0)], None, 15.0)
     assert joins == [(30.0, 0.0, 15.0)]
 
@@ -190,17 +191,17 @@ def test_a_line_out_of_a_plunge_hole_tangent_to_the_stock_wall_is_cut_with_the_s
 
 
 def test_neighbours_share_a_wall_of_positive_length():
-    from fusioncut.engines.brep.engine import Cell
+    from fusioncut.engines.brep.cells import Cell, Square, neighbours
 
     eng = BRepEngine(EngineOptions(cell_size=20.0))
     eng.start(BoxStock((0.0, 0.0, -10.0), (40.0, 40.0, 0.0)))
     cell = next(c for c in eng.cells if c.square == (0.0, 0.0, 20.0))
     eng.cells = [c for c in eng.cells if c.square[0] == 0.0]  # (0, 0) and (0, 20)
     for square in ((20.0, 0.0, 10.0), (20.0, 10.0, 10.0), (20.0, 20.0, 10.0), (-20.0, -20.0, 20.0)):
-        n = Cell(None, None, square=square)
+        n = Cell(None, None, square=Square(*square))
         n.set(cell.shape)  # any material: only the squares count
         eng.cells.append(n)
-    found = {(n.square, axis, at) for n, axis, at in eng._neighbours(cell)}
+    found = {(n.square, axis, at) for n, axis, at in neighbours(eng.cells, cell)}
     assert found == {((0.0, 20.0, 20.0), 1, 20.0), ((20.0, 0.0, 10.0), 0, 20.0), ((20.0, 10.0, 10.0), 0, 20.0)}
 
 
@@ -326,7 +327,7 @@ def test_ball_rows_cut_from_the_last_ones_end_equal_the_whole_sweeps():
     closed.start(BLOCK)
     opened = 0
     for index, move in enumerate(moves):
-        opened += open_engine.cleared is not None and open_engine.cleared[:3] == move.start
+        opened += open_engine.cleared is not None and (open_engine.cleared.x, open_engine.cleared.y, open_engine.cleared.z_lo) == move.start
         a = open_engine.step(index, move, tool, 0.0)
         closed.cleared = None
         _same(a, closed.step(index, move, tool, 0.0))

@@ -9,13 +9,17 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.brep import cells as cells_mod
 from fusioncut.engines.brep import engine as engine_mod
 from fusioncut.engines.brep import layers as layers_mod
+from fusioncut.engines.brep import solid_cut
 from fusioncut.engines.brep.engine import BRepEngine
+from fusioncut.engines.brep.solid_cut import SolidCutter
 from fusioncut.engines.brep.occ import bounding_box
 from fusioncut.engines.brep.sweep import swept_volume
 from fusioncut.engines.ceiling import footprint
-from fusioncut.engines.segments import cl_segments, step_motion
+from fusioncut.engines.segments import cl_segments, horizontal_direction, step_motion
+from fusioncut.errors import BooleanFailure, RegionCutFailure
 from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CLStatus, FlatEndMill, LinearMove,
                              TaperedEndMill, Toolpath)
 
@@ -69,7 +73,7 @@ def test_every_cl_is_reported_in_order(y, depth, seg):
 
 def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, monkeypatch):
     state = {"n": 0, "index": None, "target": None}
-    real, real_cut = BRepEngine._subtract, BRepEngine.cut
+    real, real_cut = SolidCutter.subtract, BRepEngine.cut
 
     def cut(self, index, *args):
         state["index"] = index
@@ -82,11 +86,11 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
         if state["n"] == 2:
             state["target"] = state["index"]
         if state["index"] == state["target"]:
-            raise engine_mod.BooleanFailure("simulated kernel failure")
+            raise BooleanFailure("simulated kernel failure")
         return real(self, ipw, sweep, ipw_volume, probes)
 
     monkeypatch.setattr(BRepEngine, "cut", cut)
-    monkeypatch.setattr(BRepEngine, "_subtract", flaky)
+    monkeypatch.setattr(SolidCutter, "subtract", flaky)
     eng = BRepEngine(EngineOptions(failure_dir=tmp_path, max_segment_length=6.0, layers=False))
     maps = list(eng.run(program(10, 2), STOCK))
     failed = [m for m in maps if m.status == CLStatus.FAILED]
@@ -101,7 +105,7 @@ def test_failed_boolean_marks_the_cl_saves_shapes_and_goes_on(tmp_path: Path, mo
 
 def test_a_boolean_failed_once_is_retried_with_the_sweeps_seams_turned(monkeypatch):
     seams = []
-    real_sweep, real_subtract = engine_mod.swept_volume, BRepEngine._subtract
+    real_sweep, real_subtract = engine_mod.swept_volume, SolidCutter.subtract
 
     def recording(tool, move, method, seam, open_start=False):
         seams.append(seam)
@@ -109,11 +113,11 @@ def test_a_boolean_failed_once_is_retried_with_the_sweeps_seams_turned(monkeypat
 
     def fails_first(self, ipw, sweep, ipw_volume, probes=()):
         if len(seams) == 1:
-            raise engine_mod.BooleanFailure("simulated kernel failure")
+            raise BooleanFailure("simulated kernel failure")
         return real_subtract(self, ipw, sweep, ipw_volume, probes)
 
     monkeypatch.setattr(engine_mod, "swept_volume", recording)
-    monkeypatch.setattr(BRepEngine, "_subtract", fails_first)
+    monkeypatch.setattr(SolidCutter, "subtract", fails_first)
     path = program(10, 2)
     retried = list(BRepEngine(EngineOptions(max_segment_length=6.0, layers=False)).run(path, STOCK))
     monkeypatch.undo()
@@ -132,12 +136,12 @@ def test_a_split_that_removes_nothing_but_rebuilds_the_workpiece_wrong_is_a_fail
     eng.start(STOCK)
     far = swept_volume(FlatEndMill(6, 15), LinearMove((500.0, 500.0, 0.0), (510.0, 500.0, 0.0))).shape
     ipw = eng.cells[0].shape
-    assert eng._subtract(ipw, far, STOCK.volume)[1] is None  # truly nothing removed
+    assert eng._solid_cutter().subtract(ipw, far, STOCK.volume).shape is None  # truly nothing removed
     larger = stock_solid(BoxStock(STOCK.minimum, tuple(c + 1.0 for c in STOCK.maximum)))
-    real = engine_mod.split_pieces
-    monkeypatch.setattr(engine_mod, "split_pieces", lambda *a: (real(*a)[0], [], [larger]))
-    with pytest.raises(engine_mod.BooleanFailure, match="nothing removed, yet"):
-        eng._subtract(ipw, far, STOCK.volume)
+    real = solid_cut.split_pieces
+    monkeypatch.setattr(solid_cut, "split_pieces", lambda *a: (real(*a)[0], [], [larger]))
+    with pytest.raises(BooleanFailure, match="nothing removed, yet"):
+        eng._solid_cutter().subtract(ipw, far, STOCK.volume)
 
 
 def test_nothing_removed_while_the_tools_end_lies_in_material_is_a_failure(monkeypatch):
@@ -147,12 +151,13 @@ def test_nothing_removed_while_the_tools_end_lies_in_material_is_a_failure(monke
     eng.start(STOCK)
     slot = swept_volume(FlatEndMill(6, 15), LinearMove((10.0, 10.0, -2.0), (20.0, 10.0, -2.0))).shape
     ipw = eng.cells[0].shape
-    assert eng._subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, -1.0),))[0] > 0  # the kernel right
-    real = engine_mod.split_pieces
-    monkeypatch.setattr(engine_mod, "split_pieces", lambda a, *rest: (real(a, *rest)[0], [], [a]))
-    with pytest.raises(engine_mod.BooleanFailure, match=r"holds the point \(20.0, 10.0, -1.0\)"):
-        eng._subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, 3.0), (20.0, 10.0, -1.0)))
-    assert eng._subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, 3.0),))[1] is None  # a probe in the air proves nothing
+    cutter = eng._solid_cutter()
+    assert cutter.subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, -1.0),)).removed > 0  # the kernel right
+    real = solid_cut.split_pieces
+    monkeypatch.setattr(solid_cut, "split_pieces", lambda a, *rest: (real(a, *rest)[0], [], [a]))
+    with pytest.raises(BooleanFailure, match=r"holds the point \(20.0, 10.0, -1.0\)"):
+        cutter.subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, 3.0), (20.0, 10.0, -1.0)))
+    assert cutter.subtract(ipw, slot, STOCK.volume, ((20.0, 10.0, 3.0),)).shape is None  # a probe in the air proves nothing
 
 
 @pytest.mark.parametrize("tool", [FlatEndMill(6, 15), BallEndMill(6, 15), BullNoseEndMill(10, 20, corner_radius=2)])
@@ -166,10 +171,10 @@ def test_the_end_probes_lie_inside_the_tool_at_the_end(tool, move):
     from fusioncut.engines.brep.occ import strictly_inside
     from fusioncut.engines.brep.sweep import placed_tool
 
-    probes = engine_mod._end_probes(move, tool)
+    probes = solid_cut.end_probes(move, tool)
     solid = placed_tool(tool, move.end)
     assert all(strictly_inside(solid, p, tol=1e-3) for p in probes)
-    d = engine_mod.horizontal_direction(move)
+    d = horizontal_direction(move)
     assert len(probes) == (1 if d is None else 2)
     if d is not None:
         ahead = (probes[1][0] - move.end[0]) * d[0] + (probes[1][1] - move.end[1]) * d[1]
@@ -183,7 +188,7 @@ def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch):
     def flaky(*args):
         calls["n"] += 1
         if calls["n"] == 2:
-            raise layers_mod.RegionCutFailure("simulated 2D kernel failure")
+            raise RegionCutFailure("simulated 2D kernel failure")
         return real(*args)
 
     monkeypatch.setattr(layers_mod, "_cut_region", flaky)
@@ -219,7 +224,7 @@ def test_the_reach_box_holds_the_whole_sweep(tool, kind, p, d, sweep):
     else:
         move = LinearMove(p, end, feed=500, tool=1)
     motion = step_motion(move)
-    lo, hi = engine_mod._reach_box(footprint(motion, tool), motion, tool)
+    lo, hi = cells_mod.reach_box(footprint(motion, tool), motion, tool)
     slo, shi = bounding_box(swept_volume(tool, motion).shape, exact=True)
     assert all(lo[k] <= slo[k] and shi[k] <= hi[k] for k in range(3))
 
