@@ -349,7 +349,9 @@ def stock_entry(stock: str | Stock | StockSpec | Mapping[str, object] | None) ->
         try:
             return StockSpec.model_validate(stock)
         except ValidationError as exc:
-            raise InputError(f"stock: {exc.errors()[0]['msg'].removeprefix('Value error, ')}") from None
+            first = exc.errors()[0]
+            where = ".".join(("stock", *map(str, first["loc"])))
+            raise InputError(f"{where}: {first['msg'].removeprefix('Value error, ')}") from None
     from fusioncut.io.stock import parse_stock
 
     spec = stock_spec(parse_stock(stock) if isinstance(stock, str) else stock)
