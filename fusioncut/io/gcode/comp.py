@@ -66,6 +66,8 @@ def _find_turn(x1: float, y1: float, cx: float, cy: float, turn: int, x2: float,
 
 
 def set_mode(m: Machine, group: tuple[int, int], w: Words) -> None:
+    """G40 (release the held move, the next move starts from the programmed point) or G41/G42/G41.1/
+    G42.1 (turn compensation on with the radius the module doc describes)."""
     code, col = group
     where = m.where(col)
     if code == 400:
@@ -197,6 +199,7 @@ def _held(m: Machine, kind: str, end: list[float], feed: float | None, loc: Sour
 
 
 def straight(m: Machine, end: list[float], rapid: bool, w: Words, loc: SourceLocation) -> None:
+    """A G0/G1 programmed to ``end`` with compensation on: hold its offset form, adjusting the held move."""
     comp = m.comp
     assert comp is not None
     if comp.radius == 0:
@@ -317,6 +320,7 @@ def _arc_to_line_corner(comp: CompState, prev: HeldMove, px: float, py: float, o
 
 
 def arc(m: Machine, end: list[float], cw: bool, turns: int, w: Words, loc: SourceLocation) -> None:
+    """A G2/G3 programmed to ``end`` with compensation on: hold its offset form, adjusting the held move."""
     comp = m.comp
     assert comp is not None
     if comp.radius == 0:
