@@ -44,9 +44,10 @@ from typing import TYPE_CHECKING, Any
 from fusioncut.engines.base import EngineOptions
 from fusioncut.errors import FusionCutError, InputError
 from fusioncut.extras import require
-from fusioncut.io.job import Job, job_options, load_job, make_options, program_job, stock_entry, with_inputs
+from fusioncut.io.job import (Job, StockSpec, job_options, load_job, make_options, program_job, stock_entry,
+                              with_inputs)
 from fusioncut.io.readers import is_job_file
-from fusioncut.model import EngagementMap, MillingTool, Stock, Toolpath
+from fusioncut.model import BoxStock, CylinderStock, EngagementMap, MillingTool, SolidStock, Stock, Toolpath
 
 if TYPE_CHECKING:
     from fusioncut.io.results import Results
@@ -58,15 +59,17 @@ JOB_FILE = "job.json"  # the job a program was run as, in its results folder: `f
 _QUEUE_SIZE = 64  # maps computed ahead of an iteration that has not taken them yet
 
 
-def simulate(job_or_program: Job | Toolpath | str | Path, *, stock: str | Stock | None = None,
+def simulate(job_or_program: Job | Toolpath | str | Path, *,
+             stock: str | Stock | StockSpec | Mapping[str, Any] | None = None,
              tools: str | Path | Mapping[int, MillingTool] | None = None,
              options: EngineOptions | Mapping[str, Any] | None = None, out: str | Path | None = None,
              workers: int = 1) -> Run:
     """Read and check a job or a toolpath; the :class:`Run` computes its CLs.
 
     ``stock``: a :class:`~fusioncut.model.Stock`, ``"box:x0,y0,z0,x1,y1,z1"`` (mm),
-    ``"cylinder:cx,cy,cz,radius,height"``, a STEP/BREP path, a ``.camotics`` project (its workpiece)
-    or ``"infer"`` (:func:`fusioncut.io.stock.infer_stock`); ``None``: the job's stock, else a
+    ``"cylinder:cx,cy,cz,radius,height"``, a STEP/BREP path, a ``.camotics`` project (its workpiece),
+    ``"infer"`` (:func:`fusioncut.io.stock.infer_stock`) or a job's stock entry such as
+    ``{"kind": "infer", "top": 1.0}`` (:class:`~fusioncut.io.job.StockSpec`); ``None``: the job's stock, else a
     CAMotics project's workpiece, else inferred. ``tools``: a tool library file or
     ``{number: MillingTool}``, added to the job's (the program's own tools fill the gaps).
     ``options``: :class:`EngineOptions` or a dict of job options (engine and run options,
@@ -107,7 +110,7 @@ def simulate(job_or_program: Job | Toolpath | str | Path, *, stock: str | Stock 
     return Run(prepared, out, job if write_job else None)
 
 
-def _prepare_toolpath(toolpath: Toolpath, stock: str | Stock | None,
+def _prepare_toolpath(toolpath: Toolpath, stock: str | Stock | StockSpec | Mapping[str, Any] | None,
                       tools: str | Path | Mapping[int, MillingTool] | None,
                       options: EngineOptions | Mapping[str, Any] | None) -> PreparedJob:
     """A toolpath in memory made ready like a job: tools resolved per T number, stock read or inferred."""
@@ -124,12 +127,14 @@ def _prepare_toolpath(toolpath: Toolpath, stock: str | Stock | None,
     resolved, default_tool, _ = tool_sources.resolve_tools(toolpath.moves, given, library, dict(toolpath.tools),
                                                            "library")
     toolpath = replace(toolpath, tools=resolved)
-    if stock is None or isinstance(stock, str):
-        stock = build_stock(stock_entry(stock), Path.cwd()) or infer_stock(toolpath)
+    if not isinstance(stock, (BoxStock, CylinderStock, SolidStock)):
+        spec = stock_entry(stock)
+        stock = build_stock(spec, Path.cwd()) or infer_stock(toolpath, margin=spec.margin, top=spec.top)
     run = make_options(job_options(options))
     engine = options if isinstance(options, EngineOptions) else EngineOptions(**run.model_dump(exclude=set(RUN_OPTIONS)))
-    return PreparedJob(toolpath, stock, engine, default_tool, "", run.checkpoint_every, tuple(run.snapshot_cls),
-                       run.workers, run.scheduler)
+    return PreparedJob(toolpath=toolpath, stock=stock, options=engine, default_tool=default_tool, job_id="",
+                       checkpoint_every=run.checkpoint_every, snapshot_cls=tuple(run.snapshot_cls),
+                       workers=run.workers, scheduler=run.scheduler)
 
 
 class Run:

@@ -133,3 +133,11 @@ def test_bad_input_is_refused_when_simulate_returns(slot, kwargs, message):
 def test_a_missing_program_is_named(tmp_path):
     with pytest.raises(fc.InputError, match="nothing.nc"):
         fc.simulate(tmp_path / "nothing.nc")
+
+
+def test_a_toolpath_in_memory_takes_a_stock_entry_with_its_top(slot):
+    toolpath = fc.read_toolpath(slot, TOOLS)
+    run = fc.simulate(toolpath, stock={"kind": "infer", "top": 1.0, "margin": 0.5}, tools=TOOLS, options=OPTIONS)
+    assert run.stock.maximum[2] == 1.0 and run.stock.inferred
+    by_file = fc.simulate(slot, stock={"kind": "infer", "top": 1.0, "margin": 0.5}, tools=TOOLS, options=OPTIONS)
+    assert by_file.stock == run.stock
