@@ -2,9 +2,9 @@
 
 Why: in adaptive clearing many CL segments sweep through material earlier segments already removed
 (trochoid return arcs, linking moves over the cleared floor). The kernel proves "nothing removed" only
-with a full intersection, ~50 ms a cell on the benchmark, and a distance test proves nothing because
-such sweeps still touch the walls and floors they run along. This map proves it for most of them in
-well under a millisecond, exactly in the sense that matters: a skipped (cell, segment) pair would have
+with a full intersection of the cell, and a distance test proves nothing because
+such sweeps still touch the walls and floors they run along. This map proves it for most of them at
+a small fraction of that cost (``docs/decisions/engine-measurements.md``), exactly in the sense that matters: a skipped (cell, segment) pair would have
 removed zero volume.
 
 The map is a grid of square pixels (``pixel`` mm) over the workpiece's XY bounds. ``heights[i, j]`` is an
@@ -90,8 +90,7 @@ class SweepFootprint:
 
 # The map's tests and clears visit every pixel of a window around each CL's path (~15,000 at 0.1 mm
 # for a 12 mm tool): compiled loops that stop at the first pixel that decides, instead of a dozen
-# numpy passes over the window (~0.18 ms of a ~0.8 ms adaptive CL, and each parallel worker pays it
-# for every CL of the program).
+# numpy passes over the window (each parallel worker pays this for every CL of the program).
 @njit(cache=True)
 def _path_distance(x: float, y: float, p0x: float, p0y: float, p1x: float, p1y: float, arc: bool,
                    cx: float, cy: float, rho: float, a0: float, sweep: float) -> float:
@@ -277,7 +276,7 @@ _warm = False
 
 def load_kernels() -> None:
     """Compile (or load from numba's cache) the map's kernels now, once per process: the first call
-    takes 0.1-0.2 s from the cache (seconds without it), which would otherwise land on the first CL."""
+    loads or compiles them, which would otherwise land in the first CL's time."""
     global _warm
     if not _warm:
         tiny = MaterialCeiling((0.0, 0.0), (1.0, 1.0), 0.0, pixel=0.5)

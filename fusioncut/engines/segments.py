@@ -16,19 +16,15 @@ which lies on the programmed path (on a chord, within ``chord_tolerance``, for t
 Why not the exact oblique sweep: the convex hull of a flat end mill moved obliquely has a ruled
 bottom face (its circle extruded along the move), which is not one of OCCT's analytic surfaces. Left
 in the workpiece, such faces meet the next tool cylinders nearly tangentially and OCCT's Booleans
-then go silently wrong: on a helical entry (Titan-like benchmark) a chord removed 0 mm³ instead of
->= 5.6 mm³, a plain cylinder probe at the next CL also gave 0, and a later chord "removed" the whole
-7,193 mm³ sweep, with no error from the kernel at any fuzzy value. Steps leave only planes and
-cylinders, on which the Booleans are as robust as on lines.
+then go silently wrong (a chord removing nothing, a later one "removing" its whole sweep) with no
+error from the kernel at any fuzzy value. Steps leave only planes and cylinders, on which the
+Booleans are as robust as on lines.
 
 Why steps of 0.05 mm, not finer: the wall between two steps is the tool's cylinder at each step's end,
 so neighbouring walls are equal cylinders ``d = ramp_step * L / |dz|`` apart, meeting at about
-``d / R`` rad. At 0.01 mm (a 12 mm tool on the benchmark's 4 mm helix: d = 0.11 mm, 1°) the
-benchmark's Booleans went wrong after the entry (an extra empty solid, a Common and Cut 12 mm³ apart);
-that was measured while the face merge still edited shared shapes in place (fixed since, see
-:func:`fusioncut.engines.brep.occ.unify`), so 0.01 mm may be sound now, but it was not re-measured.
-At 0.05 mm (5°) the tiny program's adaptive ran clean from every stock height tried, with a fifth of the
-faces (11 s instead of 169 s).
+``d / R`` rad. The smaller that angle, the closer the Booleans come to tangent cylinders, where they
+go wrong; finer steps also multiply the faces a helical entry leaves. The evidence for 0.05 mm, and
+why 0.01 mm is not known to be unsound today: ``docs/decisions/engine-measurements.md``.
 
 Rapids and steeper moves keep the exact oblique sweep (a staircase of a long diagonal rapid would be
 thousands of steps through air).

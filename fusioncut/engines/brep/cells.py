@@ -244,7 +244,7 @@ def column_clear_of(square: Square | None, motion: Move, reach: float, open_star
     A cell's material stands in its column (an outer column's reaches past it by at most 1e-9 of
     the grid), the sweep within ``reach`` of its path and, left open, ahead of its start; where the
     two only touch along a cell's wall their boxes, widened by the edges' tolerance, still overlap,
-    and the Boolean would prove nothing removed at full cost.
+    and the Boolean would prove nothing removed at full cost (``docs/decisions/engine-cells.md``).
     """
     if square is None or isinstance(motion, ArcMove):
         return False

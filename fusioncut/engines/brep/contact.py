@@ -203,8 +203,8 @@ def arc_contacts(arcs: list[tuple[float, float, float, float]], tool: MillingToo
     the machine arc in rad (counter-clockwise from +X) and machine heights in mm, split by the
     tool's cylindrical surfaces they cover (flute and shank), with exact areas (r × span × height).
 
-    The layered cells know their engaged arcs this way; building the cylinder faces and finding
-    the arcs again by a scan line cost 0.5 ms a CL on the benchmark's face milling.
+    The layered cells know their engaged arcs this way, without building the cylinder faces and
+    finding the arcs again by a scan line.
     """
     cylinders = [ts for ts in tool_surfaces(tool) if ts.kind == "cylinder"]
     out = []

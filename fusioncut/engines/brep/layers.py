@@ -6,11 +6,11 @@ consecutive heights where a cut's tip stopped, the material is one planar region
 cut sweeps the prism of a planar region (:func:`fusioncut.engines.brep.sweep.cylinder_region`) from
 the tip up past the cell's top, so it takes that region away from every layer above the tip, and
 removes nothing below it. Doing that as 2D Booleans on the layers' regions gives the same material
-as the 3D Boolean of the cell and the prism, at a fraction of the cost (measured on the Titan-like
-benchmark's adaptive cells, 40-edge regions: a 2D Cut 0.3–2 ms against 3–16 ms for the 3D Cut of the
-same cell). Regions of lines and arcs, which are all a flat end mill leaves, are cut in closed form
-(:mod:`fusioncut.engines.brep.planar`, ~0.5 ms on those regions against 5–6 ms for OCCT's General
-Fuse); a cut it cannot decide, and a region with other curves, goes to the General Fuse.
+as the 3D Boolean of the cell and the prism, at a fraction of the cost (an order of magnitude on
+adaptive cells: ``docs/decisions/engine-measurements.md``). Regions of lines and arcs, which are all a
+flat end mill leaves, are cut in closed form (:mod:`fusioncut.engines.brep.planar`, again about ten
+times cheaper than OCCT's General Fuse); a cut it cannot decide, and a region with other curves, goes
+to the General Fuse.
 
 Conventions: regions are compounds of planar faces in the plane z = 0 (mm); a layer covers
 ``z_lo <= z <= z_hi`` (mm, machine frame). Layers are ordered bottom up and never overlap.

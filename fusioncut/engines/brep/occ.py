@@ -52,8 +52,8 @@ def items(shapes) -> list[TopoDS_Shape]:
     """The shapes of an OCP list (a Boolean's ``Modified``, a history's ``Find``).
 
     Not ``list(shapes)``: pybind11 ends an iteration by throwing a C++ exception, and unwinding it in
-    OCP's large library costs ~0.25 ms, more than the rest of a contact face lookup; taking exactly
-    ``Size()`` items never asks for the end (1.5 µs).
+    OCP's large library costs more than the rest of a contact face lookup; taking exactly ``Size()``
+    items never asks for the end.
     """
     return list(islice(shapes, shapes.Size()))
 
@@ -70,8 +70,7 @@ def volume_change(old: TopoDS_Shape, new: TopoDS_Shape) -> float:
 
     The divergence theorem makes a solid's volume a sum over its faces (GProp integrates each face
     against one fixed point), so faces a Boolean left untouched cancel. A Cut reuses the faces it
-    did not split, so this integrates a few faces instead of a many-faced workpiece (58 of 370 ms
-    per CL went to the full volume on the benchmark's helical floors).
+    did not split, so this integrates a few faces instead of a many-faced workpiece.
     """
     maps = [face_map(old), face_map(new)]
 
@@ -221,16 +220,14 @@ def split_pieces(a: TopoDS_Shape, b: TopoDS_Shape, pf, kind: TopAbs_ShapeEnum, p
 
     The split shares a piece that both arguments cover (coincident faces in 2D, the overlap of two
     solids), so a piece of ``a`` inside ``b`` is one that is also a piece of ``b``: the selection a
-    Common and a Cut on the same intersections make, for the cost of one split instead of two (on
-    1500 of the benchmark's trochoid CLs, layered, the median went from 8.3 to 7.4 ms; 400 CLs of a
-    helical entry, solid, 16.5 to 14.6 s; same results CL by CL).
+    Common and a Cut on the same intersections make, for the cost of one split instead of two (the
+    same results CL by CL).
     """
     split = BOPAlgo_Builder()
     split.AddArgument(a)
     split.AddArgument(b)
     # no argument here can be an inverted solid (workpieces come from the stock by cuts, sweeps are
-    # built outward); without the kernel's check for one, the quick benchmark's first 700 adaptive
-    # CLs went from a median of 70-77 ms to 68 ms (measured on a Common and a Cut)
+    # built outward), so the kernel's check for one is skipped
     split.SetCheckInverted(False)
     split.SetRunParallel(parallel)
     split.PerformWithFiller(pf)
@@ -265,9 +262,9 @@ def on_old_boundary(piece: TopoDS_Shape, origins, own: ShapeMap) -> bool:
     edge of the workpiece's old boundary.
 
     There the tool only grazes a wall left by an earlier cut: it removes nothing, the chip is zero
-    thick, so it is no engagement. Seen on the benchmark's second depth level, which retraces the
-    first level's trochoids: the tool at 4-7 mm above its tip lay on the first level's walls and
-    reported 5-15° arcs there, 32 of 821 adaptive CLs, which force models would have read as cutting.
+    thick, so it is no engagement. Seen where a second depth level retraces the first level's
+    trochoids: the tool lay on the first level's walls and, without this test, reported arcs of a
+    few degrees there that force models would read as cutting.
     """
     return origins.IsBound(piece) and any(not own.Contains(s) for s in items(origins.Find(piece)))
 
@@ -298,21 +295,19 @@ MERGE_TOLERANCE = 1e-4
 def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: int = 4, gap: float = 0.0) -> TopoDS_Shape:
     """Merge faces that lie on the same surface (what keeps Booleans fast along a path).
 
-    ``ShapeUpgrade_UnifySameDomain`` edits sub-shapes of its argument in place (a helical entry's
-    workpiece changed by 10.5 mm³ while the merged result was right), and those sub-shapes are shared
-    with earlier workpieces and cells; so it merges a copy. It also returns, with no error, workpieces
-    with a hole where a face went missing (on the Titan-like benchmark's stepped helix floors: a
-    1.4 × 1.75 mm wall piece, 7.9 mm³ "lost"). So a merge is kept only if the result is valid and of
+    ``ShapeUpgrade_UnifySameDomain`` edits sub-shapes of its argument in place, and those sub-shapes
+    are shared with earlier workpieces and cells; so it merges a copy. It also returns, with no
+    error, workpieces with a hole where a face went missing (seen on a helical entry's stepped
+    floors). So a merge is kept only if the result is valid and of
     the same volume (1e-9 relative + 1e-6 mm³; ``shape_volume``, mm³, when the caller knows it), or
     within ``gap`` (mm) times twice its area of it: the fuzzy value of the Booleans that built
     ``shape``, which may have glued faces that overlap by up to that much. Such faces are what the
-    merge puts right: a ball end mill's finish left 20 cylinder patches per row and cell, each
-    2e-6 mm longer than its CL's 1 mm, merged into one exact face of 20 mm; the cell's volume moved by
-    1e-4 mm³ (6e-9 of it) and, refused, its Booleans cost 50–110 ms on 100–200 faces.
+    merge puts right: a ball end mill's finish leaves a cylinder patch per CL, each a few µm longer
+    than its CL, which merge into one exact face per row and cell.
     When it is not, the faces that reach the hole's free edges are kept as they are and the rest is
     merged again, at most ``max_rounds`` times; if no round gives a sound shape, ``shape`` is returned
-    unchanged. (Refusing the whole merge instead let that benchmark's workpiece grow from 310 to
-    4,382 faces within 120 CLs, and the Boolean median rose from 55–85 ms to 254 ms.)
+    unchanged (refusing the whole merge instead lets the face count, and with it every Boolean's
+    cost, grow without bound; ``docs/decisions/engine-measurements.md``).
 
     A merge is also refused where it leaves an edge or vertex looser than ``MERGE_TOLERANCE`` (and
     ten times the loosest of ``shape``): after a plunge and an arc of the tool's own radius, the
@@ -347,7 +342,7 @@ def unify(shape: TopoDS_Shape, shape_volume: float | None = None, max_rounds: in
             return merged
         # the faces that reach the hole's rim (the one that went missing and its neighbours) or a
         # loose edge (its exact box: its tolerance would take in faces millimetres away), by
-        # bounding boxes: the merge history is slow to query from Python, ~0.2 ms per edge
+        # bounding boxes: the merge history is slow to query from Python edge by edge
         rim = [bounding_box(e) for e in _free_edges(merged)] + [bounding_box(e, exact=True) for e in loose]
         culprits = [f for f in faces(shape) if not kept.Contains(f)
                     and any(boxes_overlap(bounding_box(f), b, 1e-6) for b in rim)]

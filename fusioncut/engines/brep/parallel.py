@@ -90,8 +90,8 @@ def unpack_cells(data: bytes, records: list[tuple[int, Square | None]]) -> list[
 def cell_records(cells: list[Cell], previous: list[Cell] | None = None) -> list[Cell]:
     """Copies of the cells' records, not of their shapes (a cut replaces a cell's shape, never edits
     it); a cell whose material and merge count are those of its record in ``previous`` keeps that
-    record. Copying every record after every CL cost the full benchmark's lone worker ~8 s: a CL
-    changes a few of its 40-odd cells."""
+    record: a CL changes a few of a worker's cells, and copying them all after every CL adds up over
+    a program."""
     if previous is None or len(previous) != len(cells):
         return [replace(c) for c in cells]
     return [p if (c.solid is p.solid and c.layers is p.layers and c.faces_at_merge == p.faces_at_merge
@@ -108,8 +108,7 @@ class PartitionWorker:
                  toolpath: Toolpath, default_tool: MillingTool | None, position: int,
                  workers_on_host: int = 1, kept_batches: int = 1) -> None:
         # the kernel's own threads only where this host has cores the workers leave free: with a
-        # worker per core they would compete with the other workers (EngineOptions.kernel_threads);
-        # a lone worker on 2 cores ran the quick benchmark 7% faster with them
+        # worker per core they would compete with the other workers (EngineOptions.kernel_threads)
         spare_cores = (os.cpu_count() or 1) > workers_on_host
         self.engine = BRepEngine(replace(options, kernel_threads=options.kernel_threads and spare_cores))
         self.engine.cells = unpack_cells(cells, records)
@@ -192,8 +191,7 @@ def cell_partition(n_cells: int, parts: int) -> list[list[int]]:
 
     The cells are listed column by column, so neighbours mostly belong to different parts and every
     worker has cells wherever the tool is. Contiguous blocks left one worker idle while the tool
-    cleared the other's side: on the quick benchmark 2 workers took 174 s against 170 s for one,
-    dealt out in turn 114 s.
+    cleared the other's side (``docs/decisions/engine-measurements.md``).
     """
     return [ids for ids in (list(range(k, n_cells, parts)) for k in range(parts)) if ids]
 
@@ -285,7 +283,7 @@ class ParallelBRepEngine:
 
         # Dask starts its worker processes with MALLOC_TRIM_THRESHOLD_=65536, so that glibc hands
         # freed memory back to the system at once; the kernel allocates and frees many small blocks
-        # per Boolean, and with it the quick benchmark ran 4-9% slower (measured in one process)
+        # per Boolean, and trimming after each free slows it down; glibc's default is kept
         keep_malloc = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
         with _children_ignore_ctrl_c(), dask.config.set(keep_malloc):
             self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
@@ -387,9 +385,8 @@ class ParallelBRepEngine:
                    for start in range(start_at, len(sequence), self.batch)]
         # Each worker has one call in flight at a time (Dask may deliver an actor's calls out of
         # order), which slices a batch merged before and cuts its next one. A worker cuts up to
-        # ``ahead`` batches beyond the one being handed out, without waiting for the others: with
-        # every worker waiting for the slowest after each batch, the full benchmark's two workers
-        # idled 23% of the time.
+        # ``ahead`` batches beyond the one being handed out, without waiting for the others: waiting
+        # for the slowest after each batch leaves every other worker idle meanwhile.
         cut: list[dict[int, list[CutOutcome]]] = [{} for _ in actors]  # per worker: batch -> outcomes
         arcs: list[dict[int, dict]] = [{} for _ in actors]  # per worker: batch -> its answer
         to_slice: list[deque[int]] = [deque() for _ in actors]  # merged batches a worker has not sliced

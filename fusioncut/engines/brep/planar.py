@@ -2,10 +2,10 @@
 
 The layered cells (:mod:`fusioncut.engines.brep.layers`) take a tool's planar region from each
 layer's region at every CL. OCCT's General Fuse does that for any curves, and pays for it: its
-edge-edge intersection is numeric, and two arcs of the tool's radius a CL apart (the front arcs of
-consecutive CLs, nearly coincident) cost 1-5 ms a pair (measured: two circles of 6 mm, centres 0.5 mm
-apart, 1.8 ms; 0.05 mm apart, 5.6 ms). Our regions only ever hold lines and arcs, whose intersections
-have closed forms, so the difference is computed here in microseconds; no library we can use does
+edge-edge intersection is numeric, and the nearer two arcs of the tool's radius a CL apart come to
+coinciding (the front arcs of consecutive CLs), the more it costs. Our regions only ever hold lines
+and arcs, whose intersections have closed forms, so the difference is computed here in closed form
+(``docs/decisions/engine-measurements.md`` has the costs); no library we can use does
 exact line/arc polygon Booleans (shapely and Clipper take polylines).
 
 Conventions: points in mm in the plane (x, y); angles in rad, counter-clockwise from +X. A region

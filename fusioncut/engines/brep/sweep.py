@@ -16,8 +16,8 @@ radius along the path's projection. That gives exact constructions without sampl
 * **cylindrical tools** (a flat end mill whose shank has the flute diameter — what adaptive
   clearing uses): on horizontal lines and on XY arcs up to half a turn the sweep is a prism of the
   planar region the disk covers (stadium, or annular sector with half-disk caps, or for a tight arc
-  the outer arc with the two end circles meeting behind the centre). One prism, no Boolean: measured
-  0.3–0.6 ms against 8–37 ms for the general constructions.
+  the outer arc with the two end circles meeting behind the centre). One prism, no Boolean: an order
+  of magnitude cheaper than the general constructions.
 * **ramp** (oblique line), convex tool B, direction d: B ∪ (B+d) ∪ prism(S, d) for any surface S ⊂ B
   whose projection along d covers B's. For a flat end mill S = axial rectangle + top + bottom disk;
   for a ball end mill S = cylinder's axial rectangle + top disk + the sphere's great disk ⊥ d
@@ -161,9 +161,9 @@ def _glued(pieces: list[TopoDS_Shape], joints: list[tuple[Vec3, Vec3]]) -> TopoD
     """The union of solids that meet only in whole planar faces, each lying in a vertical plane
     through a joint's point with the joint's horizontal normal.
 
-    The outer faces are sewn into one solid and faces on one surface merged. Measured on a 6 mm ball
-    end mill's 1 mm line: 4–6 ms against 14 ms for the glued fuse this replaces, the same volume and
-    faces. If the faces do not close into one valid solid, the glued fuse does it.
+    The outer faces are sewn into one solid and faces on one surface merged: the same volume and
+    faces as the glued fuse, for less. If the faces do not close into one valid solid, the glued
+    fuse does it.
     """
     solid = _sewn_solid([f for piece in pieces for f in faces(piece) if not _on_joint(f, joints)])
     if solid is not None:
@@ -231,8 +231,8 @@ def cylinder_region(r: float, move: Move, open_start: bool = False) -> TopoDS_Fa
     ``open_start``: the disk at the start is known to hold no material (the previous CL's tool
     stood there), so the region behind the start's diameter across the path is left out: the cut
     is the same, and the region's back is one straight edge instead of a half circle that lies on
-    the previous cut's front arc, touching its side edges tangentially. Such tangent pairs cost the
-    kernel's intersection ~2 ms each (measured on the benchmark's trochoids: 2D Booleans 20% faster).
+    the previous cut's front arc, touching its side edges tangentially: such tangent pairs are the
+    costliest the kernel's intersection meets.
     """
     pieces = _region_pieces(r, move, open_start)
     if pieces is None or pieces[0] == "disk":
@@ -545,8 +545,8 @@ def swept_volume(tool: MillingTool, move: Move, method: SweepMethod = SweepMetho
     the start is known to stand in no material, so a level sweep may leave it out behind the
     start's axial section: a cylindrical tool's (:func:`cylinder_region`) and another tool's on a
     line; other sweeps ignore it. Left out, a ball end mill's back hemisphere no longer meets the
-    neighbouring row's groove (a sphere against a cylinder: 2.5–6 ms of the kernel's intersections
-    each; a plane across the groove meets it in arcs).
+    neighbouring row's groove (a sphere against a cylinder, a costly intersection; a plane across
+    the groove meets it in arcs).
     """
     if method == SweepMethod.SAMPLED:
         return SweptVolume(sampled_sweep(tool, move, seam), SweepMethod.SAMPLED)
@@ -561,9 +561,9 @@ def swept_volume(tool: MillingTool, move: Move, method: SweepMethod = SweepMetho
     if cyl:
         shape = _exact_sweep(tool, move, seam, cyl, open_start)
     else:
-        # other tools' constructions cost 5-15 ms (a ball end mill's line is sewn from three
-        # revolved and swept pieces), and a finishing pass repeats the same motion at every CL:
-        # built once at the origin, each CL gets a translated copy (~0.3 ms)
+        # other tools' constructions are costly (a ball end mill's line is sewn from three revolved
+        # and swept pieces), and a finishing pass repeats the same motion at every CL: built once at
+        # the origin, each CL gets a translated copy
         open_line = open_start and not isinstance(move, ArcMove) and abs(p1[2] - p0[2]) < _EPS
         origin = _sweep_at_origin(tool, _relative(move), seam, open_line)
         shape = None if origin is None else moved_copy(origin, placement(p0, 0.0))
