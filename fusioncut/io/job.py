@@ -8,16 +8,15 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-from enum import Enum
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal, get_type_hints
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
 from fusioncut.engines.base import EngineOptions
-
 from fusioncut.errors import InputError, ToolDefinitionError
 from fusioncut.io.json_input import read_json
 from fusioncut.io.readers import read_toolpath  # noqa: F401 - the runner reads toolpaths from here
@@ -184,8 +183,9 @@ _TOOL_KINDS: dict[str, tuple[type[MillingTool], Any]] = {
 # that drive the kernel without changing what is computed (or only by the Booleans' tolerance).
 ENGINE_ONLY = frozenset({"failure_dir", "merge_growth", "fuzzy", "fuzzy_retries", "kernel_threads",
                          "ceiling_pixel", "layers", "max_layers"})
-# Bounds a job's value must keep (mm unless stated); EngineOptions' LOWER_BOUNDS come on top when the
-# engine options are made. Every number must also be finite.
+# Bounds a job's value must keep (mm unless stated), also for the engine-only fields, so that one taken
+# out of ENGINE_ONLY is bounded at once; EngineOptions' LOWER_BOUNDS come on top when the engine
+# options are made. Every number must also be finite.
 OPTION_BOUNDS: dict[str, dict[str, float]] = {
     "slice_height": {"gt": 0}, "max_segment_length": {"gt": 0}, "chord_tolerance": {"gt": 0},
     "ramp_step": {"gt": 0}, "cell_size": {"gt": 0}, "min_chip_thickness": {"ge": 0}, "max_layers": {"ge": 1},
@@ -198,8 +198,8 @@ OPTION_TYPES: dict[str, Any] = {"sweep": Literal["exact", "sampled"]}
 @dataclass(frozen=True)
 class OptionField:
     """One engine option as a job states it: ``name``, its Python ``type`` (the field's annotation, or
-    :data:`OPTION_TYPES`'),
-    ``default`` (EngineOptions', an enum as its value) and ``help`` (the field's ``metadata["help"]``, "" when it has none)."""
+    :data:`OPTION_TYPES`'), ``default`` (EngineOptions', an enum as its value) and ``help`` (the
+    field's ``metadata["help"]``, "" when it has none)."""
 
     name: str
     type: Any
@@ -228,14 +228,10 @@ def _engine_option(f: OptionField) -> tuple[Any, Any]:
 
 
 class _RunOptions(_Strict):
-    """Run options do not change the results and are left out of the job hash: ``checkpoint_every``
-    (save a resumable checkpoint every that many CLs; 0: only when the run ends or is interrupted),
-    ``snapshot_cls`` (write the workpiece as ``ipw_cl<N>.step`` after each of these CL indices),
-    ``workers`` (split the workpiece's cells among that many Dask worker processes of an embedded
-    cluster) and ``scheduler`` (the address of a running Dask scheduler whose workers do it instead).
-    A parallel run always uses cells (20 mm when the job asks for none); its results equal the
-    single-process run's to 0.001° and 1e-6 of the volumes, and a checkpoint of either resumes in
-    the other."""
+    """Run options (each field's description says what it does) do not change the results and are left
+    out of the job hash. A parallel run (``workers`` > 1 or a ``scheduler``) always uses cells (20 mm
+    when the job asks for none); its results equal the single-process run's to 0.001° and 1e-6 of the
+    volumes, and a checkpoint of either resumes in the other."""
 
     checkpoint_every: int = Field(200, ge=0, description="save a resumable checkpoint every that many CLs "
                                   "(0: only when the run ends or is interrupted)")
