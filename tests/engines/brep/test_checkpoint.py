@@ -66,3 +66,12 @@ def test_resumed_mixed_layered_and_solid_cells_equal_uninterrupted(tmp_path):
         forms.add(tuple(c.layers is not None for c in second.cells))
         assert _strip(done + list(second.process(tp, start_at=k))) == _strip(whole), k
     assert any(False in form and True in form for form in forms)  # resumed with solid and layered cells
+
+
+def test_the_cells_doctests_hold():
+    import doctest
+
+    from fusioncut.engines.brep import cells
+
+    failed, attempted = doctest.testmod(cells)
+    assert attempted > 0 and failed == 0
