@@ -16,8 +16,8 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from fusioncut.errors import (FusionCutError, GeometryError, InputError, JobTooLarge, SourceLocation,
-                              ToolDefinitionError)
+from fusioncut.errors import (BooleanFailure, Degenerate, EngineStateError, FusionCutError, GeometryError, InputError,
+                              JobTooLarge, KernelFailure, RegionCutFailure, SourceLocation, ToolDefinitionError)
 from fusioncut.model import (AngleInterval, AptCutter, AptParameters, ArcMove, ArcPlane, BallEndMill, BoxStock,
                              BullNoseEndMill, ChamferMill, CLStatus, CylinderStock, Drill, EngagementMap,
                              FlatEndMill, LinearMove, MillingTool, Move, SliceEngagement, SolidStock,
@@ -28,6 +28,7 @@ __version__ = "0.1.0"
 # name -> module that defines it, imported on first use (PEP 562)
 _LAZY = {
     "simulate": "fusioncut.api", "Run": "fusioncut.api", "RunConsumed": "fusioncut.api",
+    "MissingExtra": "fusioncut.extras",
     "read_toolpath": "fusioncut.io.readers", "read_tool_library": "fusioncut.io.readers",
     "load_job": "fusioncut.io.job", "Job": "fusioncut.io.job",
     "load_results": "fusioncut.io.results", "Results": "fusioncut.io.results",
@@ -42,13 +43,15 @@ __all__ = [
     "ChamferMill", "CLStatus", "CylinderStock", "Drill", "EngagementMap", "FlatEndMill", "LinearMove", "MillingTool",
     "Move", "SliceEngagement", "SolidStock", "SpindleDirection", "Stock", "TaperedEndMill", "Toolpath", "ToolProfile",
     # errors
-    "FusionCutError", "GeometryError", "InputError", "JobTooLarge", "SourceLocation", "ToolDefinitionError",
+    "FusionCutError", "InputError", "JobTooLarge", "ToolDefinitionError", "GeometryError", "BooleanFailure",
+    "RegionCutFailure", "Degenerate", "KernelFailure", "EngineStateError", "MissingExtra", "SourceLocation",
     "__version__",
 ]
 
 if TYPE_CHECKING:
     from fusioncut.api import Run, RunConsumed, simulate
     from fusioncut.engines.base import EngineOptions, SweepMethod
+    from fusioncut.extras import MissingExtra
     from fusioncut.io.job import Job, load_job
     from fusioncut.io.readers import read_tool_library, read_toolpath
     from fusioncut.io.results import Results, load_results

@@ -47,6 +47,10 @@ def test_every_public_name_resolves():
     for name in fc.__all__:
         assert getattr(fc, name) is not None, name
     assert fc.load_results is load_results
+    import fusioncut.errors
+
+    errors = {n for n, v in vars(fusioncut.errors).items() if isinstance(v, type) and issubclass(v, fc.FusionCutError)}
+    assert errors <= set(fc.__all__)
     with pytest.raises(AttributeError):
         fc.no_such_name  # noqa: B018
 
