@@ -57,6 +57,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from numba import njit
 
 from fusioncut.analysis.dynamics import ToolDynamics
 # the force model's bands and tooth sampling: one definition of the engaged edge for forces and stability
@@ -165,68 +166,188 @@ class ChatterGrid:
     0.5 x the lowest to 2 x the highest natural frequency, ``points`` in all, plus ``points_per_mode``
     within +-10 damping ratios of every mode (where the lobes' minima lie; a limit interpolated on that
     grid is within 2e-4 of the exact one on the 1-DOF benchmark, ``tests/analysis/test_stability.py``).
+    ``products`` (5, F): ``phi_x, phi_y, phi_x^2, phi_x phi_y, phi_y^2``, the terms of the eigenvalues'
+    trace and discriminant (:func:`zoa_curves_many`).
     """
 
     wc: np.ndarray
     phi: np.ndarray
+    products: np.ndarray
 
 
-def chatter_grid(dyn: ToolDynamics, points: int = 3000, points_per_mode: int = 2000) -> ChatterGrid:
+def chatter_grid(dyn: ToolDynamics, points: int = 1000, points_per_mode: int = 2000) -> ChatterGrid:
     lo, hi = dyn.frequency_band_hz()
     parts = [np.geomspace(0.5 * lo, 2.0 * hi, points)]
     for _, m in dyn.all_modes:
         parts.append(m.fn_hz * np.linspace(1 - min(10 * m.zeta, 0.5), 1 + min(10 * m.zeta, 1.0), points_per_mode))
     wc = _TWO_PI * np.unique(np.concatenate(parts))
     phi = np.zeros((len(wc), 2, 2), dtype=complex)
-    phi[:, 0, 0] = dyn.receptance("x", wc)
-    phi[:, 1, 1] = dyn.receptance("y", wc)
-    return ChatterGrid(wc, phi)
+    px, py = dyn.receptance("x", wc), dyn.receptance("y", wc)
+    phi[:, 0, 0], phi[:, 1, 1] = px, py
+    return ChatterGrid(wc, phi, np.stack((px, py, px * px, px * py, py * py)))
+
+
+def zoa_curves_many(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`zoa_curves` of a stack of directional matrices ``alpha0`` (C, 2, 2): shape (C, F, 2) each.
+
+    With ``Phi = diag(phi_x, phi_y)`` the eigenvalues of ``Phi alpha0`` are ``h +- sqrt(h^2 - det)``,
+    ``h = (phi_x a_xx + phi_y a_yy) / 2`` and ``h^2 - det`` a combination of the grid's ``products``
+    with coefficients from ``alpha0``: one matrix product for all CLs."""
+    coef = _curve_coefficients(alpha0)
+    p = grid.products
+    hr, hi = coef[:, :2] @ p[:2].real, coef[:, :2] @ p[:2].imag
+    dr, di = coef[:, 2:] @ p[2:].real, coef[:, 2:] @ p[2:].imag
+    # principal square root of dr + i di in real arithmetic, without cancellation on either side
+    r = np.hypot(dr, di)
+    big = np.sqrt(0.5 * (r + np.abs(dr)))
+    small = np.where(big > 0, 0.5 * di / np.where(big > 0, big, 1.0), 0.0)
+    sr = np.where(dr >= 0, big, np.abs(small))
+    si = np.where(dr >= 0, small, np.copysign(big, di))
+    lr = np.stack((hr + sr, hr - sr), axis=-1)
+    li = np.stack((hi + si, hi - si), axis=-1)
+    # Lambda = -1/lambda: a_lim = -2 pi Lambda_R (1 + kappa^2) / (N Kt) = 2 pi / (N Kt Re lambda) and
+    # kappa = -Im lambda / Re lambda; a positive depth needs Re lambda > 0
+    ok = lr > 0
+    safe = np.where(ok, lr, 1.0)
+    a_lim = np.where(ok, (2e3 * math.pi / (flutes * ktc * 1e6)) / safe, np.nan)  # m -> mm
+    eps = math.pi + 2.0 * np.arctan(li / safe)
+    return a_lim, eps
 
 
 def zoa_curves(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int) -> tuple[np.ndarray, np.ndarray]:
     """Per chatter frequency and eigenvalue: ``a_lim`` (mm; NaN where the eigenvalue gives no positive
     depth) and the phase ``eps`` (rad, in (0, 2 pi)); both shape (F, 2)."""
-    # eigenvalues of Phi alpha0 with Phi = diag(phi_x, phi_y): trace and determinant written out
-    px, py = grid.phi[:, 0, 0], grid.phi[:, 1, 1]
-    half_tr = 0.5 * (px * alpha0[0, 0] + py * alpha0[1, 1])
-    det = (px * py) * (alpha0[0, 0] * alpha0[1, 1] - alpha0[0, 1] * alpha0[1, 0])
-    root = np.sqrt(half_tr * half_tr - det)
-    lam = np.stack((half_tr + root, half_tr - root), axis=1)
-    # Lambda = -1/lambda: a_lim = -2 pi Lambda_R (1 + kappa^2) / (N Kt) = 2 pi / (N Kt Re lambda) and
-    # kappa = -Im lambda / Re lambda; a positive depth needs Re lambda > 0
-    lr, li = lam.real, lam.imag
-    ok = lr > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a_lim = np.where(ok, 2 * math.pi / (flutes * ktc * 1e6 * np.where(ok, lr, 1.0)) * 1e3, np.nan)  # m -> mm
-        eps = math.pi + 2.0 * np.arctan(li / np.where(ok, lr, 1.0))
-    return a_lim, eps
+    a, eps = zoa_curves_many(alpha0, grid, ktc, flutes)
+    return a[0], eps[0]
+
+
+@dataclass(frozen=True)
+class LobeSegments:
+    """The pieces of the ZOA curves between neighbouring grid frequencies that can carry a lobe: both
+    ends with a depth, and the phase ``eps`` stepping by less than pi (a jump of ``eps`` is
+    ``Lambda_R`` through 0, ``a -> inf``: no lobe). Flat arrays over both eigenvalues: ``wc0, wc1``
+    (rad/s), ``a0, a1`` (mm), ``e0, e1`` (rad)."""
+
+    wc0: np.ndarray
+    wc1: np.ndarray
+    a0: np.ndarray
+    a1: np.ndarray
+    e0: np.ndarray
+    e1: np.ndarray
+
+    @classmethod
+    def of(cls, grid: ChatterGrid, curves: tuple[np.ndarray, np.ndarray], below: float = math.inf) -> "LobeSegments":
+        """The segments of ``curves`` ((F, 2) each); with ``below``, only those where a depth under it is
+        possible (``min(a0, a1) <= below``: a limit interpolated on any other exceeds ``below``)."""
+        a, eps = curves
+        a0, a1, e0, e1 = a[:-1], a[1:], eps[:-1], eps[1:]
+        with np.errstate(invalid="ignore"):
+            keep = np.isfinite(a0) & np.isfinite(a1) & (np.abs(e1 - e0) < math.pi) & (np.minimum(a0, a1) <= below)
+        w = np.broadcast_to(grid.wc[:, None], a.shape)
+        return cls(w[:-1][keep], w[1:][keep], a0[keep], a1[keep], e0[keep], e1[keep])
+
+    def within(self, period_lo: float, period_hi: float) -> "LobeSegments":
+        """The segments that can cross a lobe at some tooth period in ``[period_lo, period_hi]`` (s): ``u``
+        is linear in the period at either end of a segment, so the values at the four corners bound it;
+        a crossing needs an integer between their least and greatest."""
+        u = np.stack([(w * t - e) / _TWO_PI for w, e in ((self.wc0, self.e0), (self.wc1, self.e1))
+                      for t in (period_lo, period_hi)])
+        keep = (np.floor(u.min(axis=0)) != np.floor(u.max(axis=0))) & (u.max(axis=0) >= 0)
+        return LobeSegments(self.wc0[keep], self.wc1[keep], self.a0[keep], self.a1[keep], self.e0[keep],
+                            self.e1[keep])
+
+    def a_lim(self, period: np.ndarray) -> np.ndarray:
+        """The smallest depth (mm) on a lobe at each tooth period (s; any shape), ``inf`` where none: the
+        speed is on lobe ``k >= 0`` where ``u = (wc T - eps) / 2 pi`` crosses ``k`` along a segment,
+        the depth interpolated linearly in ``u`` there."""
+        period = np.asarray(period, dtype=float)
+        t = period[..., None]
+        u0 = (self.wc0 * t - self.e0) / _TWO_PI
+        u1 = (self.wc1 * t - self.e1) / _TWO_PI
+        k0, k1 = np.floor(u0), np.floor(u1)
+        k = np.maximum(k0, k1)
+        cross = (k0 != k1) & (k >= 0)
+        frac = np.where(cross, (k - u0) / np.where(cross, u1 - u0, 1.0), 0.0)
+        val = np.where(cross, self.a0 + frac * (self.a1 - self.a0), np.inf)
+        return val.min(axis=-1, initial=np.inf)
+
+
+def _curve_coefficients(alpha0: np.ndarray) -> np.ndarray:
+    """Per directional matrix (C, 2, 2) the coefficients (C, 5) of the grid's ``products`` in ``h`` (first
+    two) and ``h^2 - det`` (last three), :func:`zoa_curves_many`."""
+    al = np.asarray(alpha0, dtype=float).reshape(-1, 2, 2)
+    axx, ayy = al[:, 0, 0], al[:, 1, 1]
+    d = axx * ayy - al[:, 0, 1] * al[:, 1, 0]
+    return np.stack((0.5 * axx, 0.5 * ayy, 0.25 * axx * axx, 0.5 * axx * ayy - d, 0.25 * ayy * ayy), axis=1)
+
+
+@njit(cache=True)
+def _zoa_limit_kernel(wc, pr, pi_, coef, scale, period):  # pragma: no cover - compiled
+    """:func:`zoa_curves_many` and :meth:`LobeSegments.a_lim` fused, one tooth period per CL: the ZOA
+    limit (mm) of each CL in one pass over the grid, without the curves in memory."""
+    out = np.full(coef.shape[0], np.inf)
+    two_pi = 2.0 * np.pi
+    for c in range(coef.shape[0]):
+        a_prev = np.full(2, np.nan)
+        e_prev = np.zeros(2)
+        best = np.inf
+        for f in range(wc.shape[0]):
+            hr = coef[c, 0] * pr[0, f] + coef[c, 1] * pr[1, f]
+            hi = coef[c, 0] * pi_[0, f] + coef[c, 1] * pi_[1, f]
+            dr = coef[c, 2] * pr[2, f] + coef[c, 3] * pr[3, f] + coef[c, 4] * pr[4, f]
+            di = coef[c, 2] * pi_[2, f] + coef[c, 3] * pi_[3, f] + coef[c, 4] * pi_[4, f]
+            big = np.sqrt(0.5 * (np.hypot(dr, di) + abs(dr)))
+            small = 0.5 * di / big if big > 0 else 0.0
+            if dr >= 0:
+                sr, si = big, small
+            else:
+                sr, si = abs(small), (big if di >= 0 else -big)
+            for b in range(2):
+                lr = hr + sr if b == 0 else hr - sr
+                li = hi + si if b == 0 else hi - si
+                if lr > 0:
+                    a = scale[c] / lr
+                    e = np.pi + 2.0 * np.arctan(li / lr)
+                    if f > 0 and not np.isnan(a_prev[b]) and abs(e - e_prev[b]) < np.pi:
+                        u0 = (wc[f - 1] * period[c] - e_prev[b]) / two_pi
+                        u1 = (wc[f] * period[c] - e) / two_pi
+                        k0, k1 = np.floor(u0), np.floor(u1)
+                        k = max(k0, k1)
+                        if k0 != k1 and k >= 0:
+                            v = a_prev[b] + (k - u0) / (u1 - u0) * (a - a_prev[b])
+                            best = min(best, v)
+                    a_prev[b], e_prev[b] = a, e
+                else:
+                    a_prev[b] = np.nan
+        out[c] = best
+    return out
+
+
+def zoa_a_lim_many(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: np.ndarray) -> np.ndarray:
+    """ZOA limit (mm) of many CLs, each at its own speed: ``alpha0`` (C, 2, 2), ``rpm`` (C,); equal to
+    :func:`zoa_a_lim` per CL (a compiled pass over the grid per CL, no curves kept)."""
+    coef = _curve_coefficients(alpha0)
+    scale = np.full(len(coef), 2e3 * math.pi / (flutes * ktc * 1e6))
+    period = 60.0 / (flutes * np.asarray(rpm, dtype=float).reshape(-1))
+    p = grid.products
+    return _zoa_limit_kernel(grid.wc, np.ascontiguousarray(p.real), np.ascontiguousarray(p.imag), coef, scale,
+                             period)
 
 
 def zoa_a_lim(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: np.ndarray | float,
               curves: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """ZOA limiting depth (mm) at each spindle speed ``rpm`` (rev/min); ``inf`` when no lobe reaches it."""
     rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
-    a, eps = curves if curves is not None else zoa_curves(alpha0, grid, ktc, flutes)
-    period = 60.0 / (flutes * rpm)  # (R,)
-    # lobe number u = (wc T - eps) / 2 pi: the speed is on a lobe where u crosses an integer >= 0
-    u = (grid.wc[None, :, None] * period[:, None, None] - eps[None]) / _TWO_PI  # (R, F, 2)
-    k0, k1 = np.floor(u[:, :-1]), np.floor(u[:, 1:])
-    cross = (k0 != k1) & (np.maximum(k0, k1) >= 0)
-    a0, a1 = a[None, :-1], a[None, 1:]
-    frac = np.where(cross, (np.maximum(k0, k1) - u[:, :-1]) / np.where(cross, u[:, 1:] - u[:, :-1], 1.0), 0.0)
-    # a crossing between points where both depths are known; a jump of eps (Lambda_R through 0, a -> inf)
-    # is no lobe: it is excluded by requiring both ends finite and the phase step below pi
-    jump = np.abs(np.diff(eps, axis=0))[None] < math.pi
-    val = np.where(cross & np.isfinite(a0) & np.isfinite(a1) & jump, a0 + frac * (a1 - a0), np.inf)
-    return val.min(axis=(1, 2))
+    seg = LobeSegments.of(grid, curves if curves is not None else zoa_curves(alpha0, grid, ktc, flutes))
+    return seg.a_lim(60.0 / (flutes * rpm))
 
 
 def zoa_lobes(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm_lo: float, rpm_hi: float,
               speeds: int = 400) -> tuple[np.ndarray, np.ndarray]:
     """Speeds (rev/min, ``speeds`` evenly spaced) and the ZOA limiting depth (mm) at each."""
     rpm = np.linspace(rpm_lo, rpm_hi, speeds)
-    curves = zoa_curves(alpha0, grid, ktc, flutes)
-    out = np.concatenate([zoa_a_lim(alpha0, grid, ktc, flutes, rpm[i:i + 50], curves) for i in range(0, speeds, 50)])
+    seg = LobeSegments.of(grid, zoa_curves(alpha0, grid, ktc, flutes))
+    out = np.concatenate([seg.a_lim(60.0 / (flutes * rpm[i:i + 50])) for i in range(0, speeds, 50)])
     return rpm, out
 
 
@@ -269,13 +390,20 @@ def unstable_speed_ranges(grid: ChatterGrid, curves: tuple[np.ndarray, np.ndarra
 
 
 def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: float, ap: float,
-                       rpm_lo: float, rpm_hi: float) -> float:
+                       rpm_lo: float, rpm_hi: float, curves: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """The speed in ``[rpm_lo, rpm_hi]`` nearest to ``rpm`` where the ZOA limit exceeds ``ap`` (mm):
     ``rpm`` itself when stable there, else the nearer end of its unstable range
     (:func:`unstable_speed_ranges`) moved outwards in steps of 0.05 % until the limit there exceeds
-    ``ap``, then bisected to within 0.05 % / 4096 of the boundary; NaN when the whole range is unstable."""
-    curves = zoa_curves(alpha0, grid, ktc, flutes)
-    if zoa_a_lim(alpha0, grid, ktc, flutes, rpm, curves)[0] > ap:
+    ``ap``, then bisected to within 0.05 % / 4096 of the boundary; NaN when the whole range is unstable.
+    Whether a limit exceeds ``ap`` is decided on the lobe segments that can go below it alone
+    (:meth:`LobeSegments.of`), which gives the same answer as all of them."""
+    curves = curves if curves is not None else zoa_curves(alpha0, grid, ktc, flutes)
+    seg = LobeSegments.of(grid, curves, below=ap)
+
+    def stable(n: np.ndarray | float) -> np.ndarray:
+        return seg.a_lim(60.0 / (flutes * np.asarray(n, dtype=float))) > ap
+
+    if stable(rpm):
         return float(rpm)
     ranges = unstable_speed_ranges(grid, curves, flutes, ap, rpm_lo, rpm_hi)
     cands = []
@@ -285,18 +413,21 @@ def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes
         if hi < rpm_hi:
             cands.append((hi, 1.0))
     for speed, sense in sorted(cands, key=lambda c: abs(c[0] - rpm)):
-        inner = speed
-        for i in range(1, 21):
-            n = speed * (1 + sense * 5e-4 * i)
-            if rpm_lo <= n <= rpm_hi and zoa_a_lim(alpha0, grid, ktc, flutes, n, curves)[0] > ap:
-                for _ in range(12):  # the boundary between the last unstable and the stable speed
-                    mid = 0.5 * (inner + n)
-                    if zoa_a_lim(alpha0, grid, ktc, flutes, mid, curves)[0] > ap:
-                        n = mid
-                    else:
-                        inner = mid
-                return float(n)
-            inner = n
+        steps = speed * (1 + sense * 5e-4 * np.arange(1, 21))
+        inside = (steps >= rpm_lo) & (steps <= rpm_hi)
+        ok = inside & stable(steps)
+        if not ok.any():
+            continue
+        i = int(np.argmax(ok))
+        inner, n = (steps[i - 1] if i else speed), steps[i]
+        near = seg.within(*sorted((60.0 / (flutes * inner), 60.0 / (flutes * n))))
+        for _ in range(12):  # the boundary between the last unstable and the stable speed
+            mid = 0.5 * (inner + n)
+            if near.a_lim(60.0 / (flutes * mid)) > ap:
+                n = mid
+            else:
+                inner = mid
+        return float(n)
     return math.nan
 
 
@@ -304,19 +435,34 @@ def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes
 # semi-discretization
 
 
-def _expm(a: np.ndarray) -> np.ndarray:
-    """Matrix exponential of a stack of square matrices (..., n, n): scaling and squaring of a degree-14
-    Taylor polynomial after scaling to a 1-norm below 1/2 (truncation error below 1e-17 relative)."""
-    norm = np.abs(a).sum(axis=-2).max()
-    s = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
-    x = a / (2.0 ** s)
-    eye = np.broadcast_to(np.eye(a.shape[-1]), a.shape)
-    out = eye + x / 14.0
-    for k in range(13, 0, -1):
-        out = eye + (x @ out) / k
-    for _ in range(s):
-        out = out @ out
-    return out
+def _interval_integrals(a: np.ndarray, dt: np.ndarray, degree: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For a stack of system matrices ``a`` (..., d, d) and steps ``dt`` (s, broadcast against the
+    leading axes): ``E = exp(A dt)``, ``F1 = int_0^dt e^{A(dt-s)} ds`` and ``F2 = int_0^dt e^{A(dt-s)} s ds``.
+
+    Taylor series on ``X = A h``, ``h = dt / 2^q`` with the 1-norm of ``X`` at most 1/2 (truncation below
+    1e-14 relative at ``degree`` 12): ``E = P0``, ``F1 = h P1``, ``F2 = h^2 P2`` with ``Pj = sum X^k / (k +
+    j)!``, evaluated as ``P2`` by Horner, ``P1 = I + X P2``, ``P0 = I + X P1``; then ``q`` doublings of the
+    interval: ``E <- E E``, ``F1 <- F1 + E F1``, ``F2 <- E F2 + h F1 + F2`` (split at ``h``), ``h <- 2 h``.
+    """
+    d = a.shape[-1]
+    h = np.broadcast_to(np.asarray(dt, dtype=float), a.shape[:-2])[..., None, None]
+    norm = float((np.abs(a).sum(axis=-2).max(axis=-1) * h[..., 0, 0]).max()) if a.size else 0.0
+    q = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
+    h = h / 2.0 ** q
+    x = a * h
+    eye = np.eye(d)
+    p2 = eye / math.factorial(degree + 2) + 0.0 * x
+    for k in range(degree - 1, -1, -1):
+        p2 = eye / math.factorial(k + 2) + x @ p2
+    p1 = eye + x @ p2
+    e = eye + x @ p1
+    f1, f2 = h * p1, h * h * p2
+    for _ in range(q):
+        f2 = e @ f2 + h * f1 + f2
+        f1 = f1 + e @ f1
+        e = e @ e
+        h = 2.0 * h
+    return e, f1, f2
 
 
 @dataclass(frozen=True)
@@ -375,21 +521,15 @@ def sd_multipliers(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.n
     minv = 1.0 / system.m
     dt = 60.0 / (cd.flutes * rpm) / m  # (nb,)
     a_si = a_mm * 1e-3
-    # augmented generator [[A, I, 0], [0, 0, I], [0, 0, 0]] dt: blocks exp(A dt), int e^{As}, int e^{As}(dt-s)
+    # per interval the system matrix A = [[0, I], [-M^-1 (K - a W_i), -M^-1 C]] of y = (q, q')
     d2 = 2 * n
-    gen = np.zeros((nb, m, 3 * d2, 3 * d2))
-    gen[:, :, :n, n:d2] = np.eye(n)
+    amat = np.zeros((nb, m, d2, d2))
+    amat[:, :, :n, n:] = np.eye(n)
     cut = a_si[:, None, None, None] * minv[None, None, :, None] * w[None]  # a M^-1 W: (nb, steps, n, n)
-    gen[:, :, n:d2, :n] = -np.diag(minv * system.k)[None, None] + cut
-    gen[:, :, n:d2, n:d2] = -np.diag(minv * system.c)
-    gen[:, :, :d2, d2:2 * d2] = np.eye(d2)
-    gen[:, :, d2:2 * d2, 2 * d2:] = np.eye(d2)
-    gen *= dt[:, None, None, None]
-    # exp(gen) = [[e^{A dt}, int_0^dt e^{As} ds, int_0^dt e^{As} (dt - s) ds], ...] (Van Loan)
-    e = _expm(gen)
-    phi0 = e[:, :, :d2, :d2]
-    phi1 = e[:, :, :d2, d2:2 * d2]                          # int_0^dt e^{A(dt-s)} ds
-    phi2 = e[:, :, :d2, 2 * d2:] / dt[:, None, None, None]  # int_0^dt e^{A(dt-s)} s ds / dt
+    amat[:, :, n:, :n] = -np.diag(minv * system.k)[None, None] + cut
+    amat[:, :, n:, n:] = -np.diag(minv * system.c)
+    phi0, phi1, f2 = _interval_integrals(amat, dt[:, None])
+    phi2 = f2 / dt[:, None, None, None]  # int_0^dt e^{A(dt-s)} s ds / dt
     # delayed term: y'' gets -a M^-1 W q(t - T); its input matrix acts on the velocity rows
     bq = -cut
     c_old = (phi1 - phi2)[..., n:] @ bq   # coefficient of q_{i-m}
@@ -419,14 +559,18 @@ def sd_steps(system: ModalSystem, flutes: int, rpm: float, steps: int, per_vibra
 
 def sd_a_lim(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: Sequence[float] | float, a_ref: np.ndarray,
              steps: int = 30, per_vibration: float = 12.0, substeps: int = 8, grid_points: int = 14,
-             bisections: int = 8, max_steps: int | None = None) -> np.ndarray:
+             rel_tol: float = 1e-3, max_steps: int | None = None) -> np.ndarray:
     """SD limiting depth (mm) at each speed: the smallest depth on the geometric grid ``a_ref x [0.05,
-    10]`` (``grid_points``) that is unstable, bisected ``bisections`` times against the stable point
-    below it. ``a_ref`` is a scale per speed (the ZOA limit; where that is not finite the CL's ``ap``).
-    ``inf`` when the whole grid is stable; the smallest grid depth when that is already unstable. Steps
-    per tooth period: :func:`sd_steps`; NaN (not computed) where they would exceed ``max_steps`` (low
-    speeds against the modes: the monodromy matrix grows with the steps and its eigenvalues cost their
-    cube; the lobes are dense there and close to ZOA's)."""
+    10]`` (``grid_points``) that is unstable, refined against the stable grid point below it to a bracket
+    ``hi / lo < 1 + rel_tol`` (the result its geometric mean) by the Illinois variant of regula falsi on
+    ``log rho`` against ``log a`` (``rho`` the spectral radius; a point within a quarter of the tolerance
+    of either end is moved inside, so the bracket shrinks every step). ``a_ref`` is a scale per speed
+    (the ZOA limit; where that is not finite the CL's ``ap``). ``inf`` when the whole grid is stable; the
+    smallest grid depth when that is already unstable. The grid is evaluated up to its first point above
+    ``a_ref`` for every speed, then one point at a time for the speeds still stable. Steps per tooth
+    period: :func:`sd_steps`; NaN (not computed) where they would exceed ``max_steps`` (low speeds
+    against the modes: the monodromy matrix grows with the steps and its eigenvalues cost their cube;
+    the lobes are dense there and close to ZOA's)."""
     rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
     ref = np.broadcast_to(np.asarray(a_ref, dtype=float), rpm.shape)
     out = np.full(rpm.shape, np.inf)
@@ -439,29 +583,57 @@ def sd_a_lim(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: Sequence[f
         if max_steps is not None and m > max_steps:
             continue
         idx = np.flatnonzero(m_of == m)
-        out[idx] = _sd_a_lim_fixed(cd, system, ktc, rpm[idx], ref[idx], int(m), substeps, grid_points, bisections)
+        out[idx] = _sd_a_lim_fixed(cd, system, ktc, rpm[idx], ref[idx], int(m), substeps, grid_points, rel_tol)
     return out
 
 
 def _sd_a_lim_fixed(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray, ref: np.ndarray,
-                    steps: int, substeps: int, grid_points: int, bisections: int) -> np.ndarray:
+                    steps: int, substeps: int, grid_points: int, rel_tol: float) -> np.ndarray:
     b = _step_matrices(cd, steps, substeps)
+
+    def log_rho(rows: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        return np.log(sd_spectral_radius(cd, system, ktc, rpm[rows], depth, steps, substeps, b))
+
     ratios = np.geomspace(0.05, 10.0, grid_points)
-    depths = ref[:, None] * ratios[None, :]
-    rho = sd_spectral_radius(cd, system, ktc, np.repeat(rpm, grid_points), depths.ravel(), steps, substeps, b)
-    unstable = rho.reshape(len(rpm), grid_points) >= 1.0
+    nr = len(rpm)
+    g = np.full((nr, grid_points), np.nan)  # log rho on the grid, NaN: not evaluated
+    first_above = int(np.searchsorted(ratios, 1.0, side="right"))
+    head = min(first_above + 1, grid_points)
+    rows = np.repeat(np.arange(nr), head)
+    g[:, :head] = log_rho(rows, (ref[:, None] * ratios[None, :head]).ravel()).reshape(nr, head)
+    for j in range(head, grid_points):
+        todo = np.flatnonzero(~(g[:, :j] >= 0).any(axis=1))
+        if not len(todo):
+            break
+        g[todo, j] = log_rho(todo, ref[todo] * ratios[j])
+    unstable = g >= 0
     first = np.where(unstable.any(axis=1), unstable.argmax(axis=1), -1)
-    rows = np.arange(len(rpm))
-    lo = np.where(first > 0, depths[rows, np.maximum(first - 1, 0)], np.nan)
-    hi = np.where(first > 0, depths[rows, np.maximum(first, 0)], np.nan)
+    out = np.where(first == 0, ref * ratios[0], np.inf)
     todo = np.flatnonzero(first > 0)
-    for _ in range(bisections if len(todo) else 0):
-        mid = np.sqrt(lo[todo] * hi[todo])
-        bad = sd_spectral_radius(cd, system, ktc, rpm[todo], mid, steps, substeps, b) >= 1.0
-        hi[todo] = np.where(bad, mid, hi[todo])
-        lo[todo] = np.where(bad, lo[todo], mid)
-    out = np.where(first > 0, np.sqrt(lo * hi), np.inf)
-    return np.where(first == 0, depths[:, 0], out)
+    if not len(todo):
+        return out
+    j = first[todo]
+    xl, xh = np.log(ref[todo] * ratios[j - 1]), np.log(ref[todo] * ratios[j])
+    gl, gh = g[todo, j - 1], g[todo, j]
+    side = np.zeros(len(todo))  # +1: the last point replaced the unstable end, -1: the stable one
+    tol = math.log1p(rel_tol)
+    for _ in range(60):
+        live = np.flatnonzero(xh - xl >= tol)
+        if not len(live):
+            break
+        lo, hi, fl, fh = xl[live], xh[live], gl[live], gh[live]
+        x = hi - fh * (hi - lo) / (fh - fl)
+        x = np.clip(x, lo + 0.25 * tol, hi - 0.25 * tol)
+        gx = log_rho(todo[live], np.exp(x))
+        up = gx >= 0
+        # Illinois: an end kept twice in a row has its value halved, pulling the next point towards it
+        gl[live] = np.where(up & (side[live] > 0), 0.5 * fl, np.where(up, fl, gx))
+        gh[live] = np.where(~up & (side[live] < 0), 0.5 * fh, np.where(up, gx, fh))
+        xh[live] = np.where(up, x, hi)
+        xl[live] = np.where(up, lo, x)
+        side[live] = np.where(up, 1.0, -1.0)
+    out[todo] = np.exp(0.5 * (xl + xh))
+    return out
 
 
 # --------------------------------------------------------------------------------------------------
@@ -488,6 +660,28 @@ STABILITY_COLUMNS: tuple[tuple[str, str, str], ...] = (
 def _key(*arrays: np.ndarray) -> bytes:
     """Cache key of arrays rounded to 1e-9 (equal engagements of a program's CLs share their limits)."""
     return b"|".join(np.round(np.asarray(a, dtype=float), 9).tobytes() for a in arrays)
+
+
+def _limits(todo: list[tuple[bytes, tuple[CLDirectional, float]]], grid: ChatterGrid, system: ModalSystem,
+            ktc: float, sd: bool, sd_steps: int, sd_max_steps: int | None,
+            rpm_range: tuple[float, float] | None) -> dict[bytes, tuple[float, float, float]]:
+    """ZOA limit (:func:`zoa_a_lim_many`), SD limit (NaN without ``sd``) and nearest stable speed (for the
+    CLs unstable by ZOA) of each distinct engagement of one tool."""
+    out: dict[bytes, tuple[float, float, float]] = {}
+    if not todo:
+        return out
+    flutes = todo[0][1][0].flutes  # one tool
+    zoa = zoa_a_lim_many(np.array([cd.alpha0 for _, (cd, _) in todo]), grid, ktc, flutes,
+                         np.array([n for _, (_, n) in todo]))
+    for j, (key, (cd, n)) in enumerate(todo):
+        sdl = math.nan
+        if sd:
+            ref = zoa[j] if math.isfinite(zoa[j]) else cd.ap
+            sdl = float(sd_a_lim(cd, system, ktc, n, ref, steps=sd_steps, max_steps=sd_max_steps)[0])
+        lo, hi = rpm_range if rpm_range is not None else (0.5 * n, 1.5 * n)
+        near = n if zoa[j] > cd.ap else nearest_stable_rpm(cd.alpha0, grid, ktc, flutes, n, cd.ap, lo, hi)
+        out[key] = (float(zoa[j]), sdl, float(near))
+    return out
 
 
 def stability_table(
@@ -518,8 +712,9 @@ def stability_table(
     system = ModalSystem.from_dynamics(dynamics)
     ktc = coefficients.ktc
     names = [c[0] for c in STABILITY_COLUMNS]
-    cache: dict[bytes, tuple[float, float, float]] = {}
     rows = []
+    pending: dict[bytes, tuple[CLDirectional, float]] = {}  # one computation per distinct engagement
+    keys: list[tuple[int, bytes, float]] = []  # (row, key, ap)
     for emap, n in zip(maps, rpm):
         row: dict[str, object] = dict.fromkeys(names, math.nan)
         row.update(cl=emap.cl_index, file=str(emap.source.file), line=int(emap.source.line),
@@ -537,17 +732,12 @@ def stability_table(
             continue
         b = cd.bands
         key = _key(cd.alpha0, cd.frame, cd.lag, b.area, b.sk, b.ck, b.entry, b.span, np.array([n, cd.flutes, cd.ap]))
-        if key not in cache:
-            zoa = float(zoa_a_lim(cd.alpha0, grid, ktc, cd.flutes, n)[0])
-            sdl = math.nan
-            if sd:
-                ref = zoa if math.isfinite(zoa) else cd.ap
-                sdl = float(sd_a_lim(cd, system, ktc, n, ref, steps=sd_steps, max_steps=sd_max_steps)[0])
-            lo, hi = rpm_range if rpm_range is not None else (0.5 * n, 1.5 * n)
-            near = nearest_stable_rpm(cd.alpha0, grid, ktc, cd.flutes, n, cd.ap, lo, hi)
-            cache[key] = (zoa, sdl, near)
-        zoa, sdl, near = cache[key]
+        pending.setdefault(key, (cd, float(n)))
+        keys.append((len(rows) - 1, key, cd.ap))
+    done = _limits(list(pending.items()), grid, system, ktc, sd, sd_steps, sd_max_steps, rpm_range)
+    for i, key, ap in keys:
+        zoa, sdl, near = done[key]
         limit = zoa if math.isnan(sdl) else min(zoa, sdl)
-        row.update(a_lim_zoa_mm=zoa, a_lim_sd_mm=sdl, margin=cd.ap / limit, nearest_stable_rpm=near)
+        rows[i].update(a_lim_zoa_mm=zoa, a_lim_sd_mm=sdl, margin=ap / limit, nearest_stable_rpm=near)
     df = pd.DataFrame(rows, columns=names)
     return df.astype({"cl": "int64", "line": "int64", "file": "string", "operation": "string", "status": "string"})

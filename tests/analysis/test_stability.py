@@ -120,6 +120,28 @@ def test_zoa_one_dof_closed_form() -> None:
     assert got == pytest.approx(want, rel=5e-4)
 
 
+def test_zoa_many_cls_equal_one_at_a_time() -> None:
+    """The compiled pass over many CLs (each at its own speed) gives each CL's zoa_a_lim, and the real
+    arithmetic of the curves equals the eigenvalues of Phi alpha0 computed by LAPACK."""
+    from fusioncut.analysis.stability import zoa_a_lim_many, zoa_curves
+
+    rng = np.random.default_rng(5)
+    dyn = ToolDynamics((Mode(600.0, 0.035, 5.6e6), Mode(1450.0, 0.02, 1.4e7)), (Mode(660.0, 0.03, 5.7e6),))
+    grid = chatter_grid(dyn)
+    alphas = rng.normal(0.0, 2.0, (40, 2, 2))
+    speeds = rng.uniform(2000.0, 30000.0, 40)
+    many = zoa_a_lim_many(alphas, grid, KTC, 3, speeds)
+    one = np.array([zoa_a_lim(a, grid, KTC, 3, n)[0] for a, n in zip(alphas, speeds)])
+    assert np.isfinite(one).sum() > 30
+    np.testing.assert_allclose(many, one, rtol=1e-12)
+    lam = np.linalg.eigvals(grid.phi @ alphas[0])
+    a, _ = zoa_curves(alphas[0], grid, KTC, 3)
+    re = 2e3 * math.pi / (3 * KTC * 1e6) / a  # Re lambda where positive
+    want = np.sort(lam.real, axis=1)
+    both = np.isfinite(re).all(axis=1)
+    np.testing.assert_allclose(np.sort(re[both], axis=1), want[both], rtol=1e-9, atol=1e-12 * np.abs(want).max())
+
+
 def test_zoa_frame_invariance() -> None:
     """x-only dynamics fed along +Y cut like y-only dynamics fed along +X; symmetric dynamics do not care
     about the spindle sense."""
