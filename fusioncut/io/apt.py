@@ -69,6 +69,7 @@ from fusioncut.errors import FusionCutError, InputError, SourceLocation, ToolDef
 from fusioncut.io.apt_arcs import MAX_EXTRA_TURNS, TangentCheck, nx_circle_axis, nx_marker_line, solve_arc
 from fusioncut.model.moves import ArcMove, LinearMove, Move, Point, Toolpath
 from fusioncut.model.tools import (
+    ASSUMED_FLUTE_LENGTH_DIAMETERS,
     AptCutter,
     AptParameters,
     BallEndMill,
@@ -79,15 +80,13 @@ from fusioncut.model.tools import (
     SpindleDirection,
     TaperedEndMill,
 )
+from fusioncut.model.units import MM_PER_INCH
 
 __all__ = ["read_apt", "cutter_from_parameters"]
 
-INCH = 25.4
 # Coordinates beyond a kilometre are garbage, not a machine; refusing them early keeps the arithmetic
 # below (squares, trigonometry) away from overflow.
 MAX_ABS_VALUE = 1e6
-# When a cutter statement gives no flute length, the fluted part is assumed this many diameters long.
-ASSUMED_FLUTE_LENGTH_DIAMETERS = 3.0
 _AXIS_TOL = 1e-6  # tolerance on unit tool-axis / arc-axis components
 _DIM_TOL = 1e-6  # mm; dimensions closer than this are equal
 
@@ -335,7 +334,7 @@ _REFUSED = {
 }
 # motion statements that may not come between an arc statement and the GOTO of its end
 _BREAKS_ARC = {"RAPID", "GODLTA", "GOHOME", "FROM", "MOVARC", "CIRCLE", "CYCLE"}
-_FEED_UNITS = {"MMPM": (1.0, False), "IPM": (INCH, False), "MMPR": (1.0, True), "IPR": (INCH, True)}
+_FEED_UNITS = {"MMPM": (1.0, False), "IPM": (MM_PER_INCH, False), "MMPR": (1.0, True), "IPR": (MM_PER_INCH, True)}
 
 
 @dataclass
@@ -915,7 +914,7 @@ class _AptReader:
         if word in {"MM", "MILLIMETERS", "MILLIMETRES", "METRIC"}:
             self.s.scale = 1.0
         elif word in {"INCHES", "INCH", "IN"}:
-            self.s.scale = INCH
+            self.s.scale = MM_PER_INCH
         else:
             raise InputError(f"UNITS/{word or '?'}: expected MM or INCHES", self.where(rec))
         self.s.units_seen = True

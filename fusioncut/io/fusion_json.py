@@ -49,7 +49,8 @@ from typing import Annotated, Any, Literal
 from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, TypeAdapter, ValidationError
 
 from fusioncut.errors import FusionCutError, InputError, SourceLocation, ToolDefinitionError
-from fusioncut.io.apt import INCH, ToolRegistry, check_tool_axis, finite, solve_arc
+from fusioncut.io.apt import ToolRegistry, check_tool_axis, finite, solve_arc
+from fusioncut.model.units import MM_PER_INCH
 from fusioncut.io.tool_library import fusion_tool, pydantic_message
 from fusioncut.model.moves import ArcMove, LinearMove, Move, Point, Toolpath
 from fusioncut.model.tools import MillingTool, SpindleDirection
@@ -494,7 +495,7 @@ class _JsonReader:
         if entries is None:
             what = "not an array" if "toolpath" in head else "missing"
             raise InputError(f"toolpath: {what} (expected an array of entries)", SourceLocation(self.file))
-        self.scale = INCH if header.unit == "in" else 1.0
+        self.scale = MM_PER_INCH if header.unit == "in" else 1.0
         for i, (raw, offset) in enumerate(entries):
             where = doc.where(offset)
             try:

@@ -45,7 +45,9 @@ from typing import Annotated, Any, Literal
 from pydantic import AllowInfNan, BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from fusioncut.errors import InputError, SourceLocation, ToolDefinitionError
-from fusioncut.io.apt import ASSUMED_FLUTE_LENGTH_DIAMETERS, INCH, make_tool, read_source_text
+from fusioncut.io.apt import make_tool, read_source_text
+from fusioncut.model.tools import ASSUMED_FLUTE_LENGTH_DIAMETERS
+from fusioncut.model.units import MM_PER_INCH
 from fusioncut.io.archive import read_member
 from fusioncut.io.json_input import parse_json
 from fusioncut.model.stock import BoxStock
@@ -387,7 +389,7 @@ def _fusion_library_from_text(text: str, file: str) -> ToolLibrary:
             error = ToolDefinitionError(f"{path}: tool {name!r}{number_text} has no geometry", where)
         else:
             g = entry.geometry
-            k = INCH if entry.unit == "inches" else 1.0
+            k = MM_PER_INCH if entry.unit == "inches" else 1.0
 
             def mm(v: float | None, k: float = k) -> float | None:
                 return None if v is None else v * k
@@ -502,7 +504,7 @@ def _tbl_tool(number: int, d: float, comment: str, scale: float, where: SourceLo
 
 def _read_tbl(path: Path, units: str) -> ToolLibrary:
     file = str(path)
-    scale = {"mm": 1.0, "inch": INCH}[units]
+    scale = {"mm": 1.0, "inch": MM_PER_INCH}[units]
     text = read_source_text(path)
     tools: dict[int, MillingTool] = {}
     refused: dict[int, ToolDefinitionError] = {}
@@ -649,7 +651,7 @@ class CamoticsProject:
 
 
 def _camotics_tool(number: int, t: _CamTool, default_units: str, where: SourceLocation, path: str) -> MillingTool:
-    k = INCH if (t.units or default_units) == "imperial" else 1.0
+    k = MM_PER_INCH if (t.units or default_units) == "imperial" else 1.0
     d, length = t.diameter * k, t.length * k
     if not (d > 0 and length > 0):
         raise ToolDefinitionError(f"{path}: T{number}: diameter and length must be > 0", where)

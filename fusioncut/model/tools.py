@@ -26,6 +26,8 @@ from typing import Literal
 from fusioncut.errors import ToolDefinitionError
 
 _EPS = 1e-9
+# When a source gives no flute length, the fluted part is assumed this many diameters long.
+ASSUMED_FLUTE_LENGTH_DIAMETERS = 3.0
 
 
 class SpindleDirection(str, Enum):

@@ -7,7 +7,7 @@ posts follow with the tool's own comment (``flat end mill 2 flute [d2.4mm]``). N
 program's units (its first G20/G21). The kind follows the words and numbers: ball (the words, or
 ``CR = D/2``), drill (``TAPER`` is its point's included angle, 118 degrees if absent), chamfer / spot /
 engraving (``TAPER``, 45 degrees if absent), tapered, bull-nose (``CR > 0``), else flat. The comment
-gives no flute length: it is taken as :data:`~fusioncut.io.apt.ASSUMED_FLUTE_LENGTH_DIAMETERS`
+gives no flute length: it is taken as :data:`~fusioncut.model.tools.ASSUMED_FLUTE_LENGTH_DIAMETERS`
 diameters, or ``-ZMIN`` when the tool reaches deeper.
 """
 from __future__ import annotations
@@ -16,8 +16,8 @@ import re
 from dataclasses import dataclass, replace
 
 from fusioncut.errors import SourceLocation, ToolDefinitionError
-from fusioncut.io.apt import ASSUMED_FLUTE_LENGTH_DIAMETERS
 from fusioncut.model.tools import (
+    ASSUMED_FLUTE_LENGTH_DIAMETERS,
     BallEndMill,
     BullNoseEndMill,
     ChamferMill,
