@@ -38,6 +38,7 @@ from fusioncut.cli._errors import friendly_errors
 from fusioncut.demo import DEMO_OPTIONS
 from fusioncut.engines.sizing import Budget
 from fusioncut.extras import require
+from fusioncut.io.job import OptionField, engine_option_fields
 from fusioncut.model import EngagementMap
 
 console = Console()
@@ -175,15 +176,12 @@ SCHEDULER_HELP = ("run on every worker of a running Dask scheduler (e.g. tcp://h
                   "--workers; overrides the job's options.scheduler")
 
 
-def _flag_value(name: str, value: object) -> object:
-    """A generated option flag's value as the job's validation takes it: ``none``/``null`` for an
-    option whose ``None`` means something, comma-separated numbers for a list."""
-    if isinstance(value, str) and value.strip().lower() in ("none", "null"):
-        return None if name in _OPTIONAL else value
+def _flag_value(option: OptionField, value: object) -> object:
+    """A generated option flag's value as the job's validation takes it (``none``/``null``: ``None``,
+    for an option that takes it)."""
+    if option.takes_none and isinstance(value, str) and value.strip().lower() in ("none", "null"):
+        return None
     return value
-
-
-_OPTIONAL: set[str] = set()  # names of the engine options that take None
 
 
 def _with_engine_flags(command: Callable[..., None]) -> None:
@@ -191,21 +189,16 @@ def _with_engine_flags(command: Callable[..., None]) -> None:
     generated from :class:`~fusioncut.engines.base.EngineOptions` (help and default from its fields):
     ``--slice-height 0.5``, ``--sweep sampled``, ``--cell-size none``. A flag not given keeps the
     job's value; the job's validation refuses a bad one naming the flag."""
-    from fusioncut.io.job import engine_option_fields
-
     signature = inspect.signature(command)
     params = [p for p in signature.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
     annotations = {p.name: p.annotation for p in params}
     for f in engine_option_fields():
         flag = "--" + f.name.replace("_", "-")
         choices = get_args(f.type) if get_origin(f.type) is Literal else ()
-        optional = type(None) in get_args(f.type)
-        if optional:
-            _OPTIONAL.add(f.name)
         if f.type is bool:
             option, annotation = typer.Option(None, f"{flag}/--no-{flag[2:]}", help=f.description), Optional[bool]
         else:
-            metavar = "|".join(choices) if choices else ("NUMBER|none" if optional else "NUMBER")
+            metavar = "|".join(choices) if choices else ("NUMBER|none" if f.takes_none else "NUMBER")
             option, annotation = typer.Option(None, flag, metavar=metavar, help=f.description), Optional[str]
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=option,
                                         annotation=annotation))
@@ -274,7 +267,8 @@ def register(app: typer.Typer) -> None:
             if stock not in (None, "infer"):
                 raise typer.BadParameter("--stock-top states the top of an inferred stock, not of --stock " + stock)
             stock = {"kind": "infer", "top": stock_top}  # type: ignore[assignment]
-        given = {name: _flag_value(name, value) for name, value in engine_options.items() if value is not None}
+        fields = {f.name: f for f in engine_option_fields()}
+        given = {name: _flag_value(fields[name], value) for name, value in engine_options.items() if value is not None}
         if is_job_file(source):
             job, base = load_job(source)
             job = with_inputs(job, stock=stock, tools=tools, options=given, flags=True)

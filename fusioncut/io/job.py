@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from enum import Enum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal, get_type_hints
+from typing import TYPE_CHECKING, Annotated, Any, Literal, get_args, get_type_hints
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
@@ -205,6 +205,11 @@ class OptionField:
     type: Any
     default: Any
     help: str
+
+    @property
+    def takes_none(self) -> bool:
+        """Whether ``None`` is a value of the option (it then means something: see its help)."""
+        return type(None) in get_args(self.type)
 
     @property
     def description(self) -> str:

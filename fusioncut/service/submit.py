@@ -61,9 +61,7 @@ class JobSubmission(BaseModel):
 def _form_field(f: OptionField) -> tuple[dict[str, Any], Callable[[str], Any]]:
     """The form field of a job engine option: its JSON schema and how its text becomes the value
     (``none`` for an option whose ``None`` means something; the job's validation does the rest)."""
-    args = get_args(f.type)
-    optional = type(None) in args
-    kind = next((a for a in args if a is not type(None)), f.type) if optional else f.type
+    kind = next(a for a in get_args(f.type) if a is not type(None)) if f.takes_none else f.type
     schema: dict[str, Any] = {"description": f.description}
     if get_origin(kind) is Literal:
         schema.update(type="string", enum=list(get_args(kind)))
@@ -74,7 +72,7 @@ def _form_field(f: OptionField) -> tuple[dict[str, Any], Callable[[str], Any]]:
     else:
         schema["type"] = "integer" if kind is int else "number"
         convert = int if kind is int else float
-    if optional:
+    if f.takes_none:
         schema = {"anyOf": [schema, {"type": "string", "enum": ["none"]}], "description": schema.pop("description")}
         convert = _or_none(convert)
     return schema, convert
