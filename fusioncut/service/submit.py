@@ -27,7 +27,7 @@ STOCK_SUFFIXES = (".step", ".stp", ".brep")
 SCENE_FILE = "scene.json"  # stock outline for the 3D view, computed while checking the job
 
 
-class SubmissionError(Exception):
+class SubmissionError(FusionCutError):
     """A request the service refuses: ``status`` (4xx) and a one-line message for the user."""
 
     def __init__(self, status: int, message: str):
