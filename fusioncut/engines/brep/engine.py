@@ -297,19 +297,8 @@ class BRepEngine:
         layered = [r for r in layered if r.cut.cuts]
         if not results and not layered:  # nothing removed: the tool only touches or misses the material
             return CutOutcome(idle, method=method, timings=timings), []
-        removed = sum(r.removed for r in results) + sum(r.cut.removed for r in layered)
-        for r in results:
-            for part in r.parts:
-                part.cell.set(part.shape, part.volume)
-        for r in layered:
-            r.cell.set_layers(r.cut.layers)
-        self.removed_total += removed
-        # the volume per slice band is known where every cell that lost material was layered
-        lost = [(c.z_lo, c.z_hi, c.lost) for r in layered for c in r.cut.cuts]
-        bands = None if results else band_volumes(lost, move.end[2], self.options.slice_height,
-                                                  min(max(p[1] for p in lost) - move.end[2], tool.flute_length))
-        outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
-                             method=method, timings=timings, band_volumes=bands)
+        outcome = self._apply(cl, results, layered)
+        outcome.method, outcome.timings = method, timings
         contacts = []
         try:
             contacts = self._contact_faces(cl, results, layered, sweep, region)
@@ -328,6 +317,22 @@ class BRepEngine:
         return outcome, contacts
 
     # -- the rooms' glue --------------------------------------------------------------------------
+    def _apply(self, cl: CL, results: list[SolidCut], layered: list[LayeredCut]) -> CutOutcome:
+        """Give the cells the material the CL's cuts left them; the outcome's status, the volume
+        removed (mm³) and, where every cell that lost material was layered, its slice bands' volumes."""
+        removed = sum(r.removed for r in results) + sum(r.cut.removed for r in layered)
+        for r in results:
+            for part in r.parts:
+                part.cell.set(part.shape, part.volume)
+        for r in layered:
+            r.cell.set_layers(r.cut.layers)
+        self.removed_total += removed
+        z_tip = cl.move.end[2]
+        lost = [(c.z_lo, c.z_hi, c.lost) for r in layered for c in r.cut.cuts]
+        bands = None if results else band_volumes(lost, z_tip, self.options.slice_height,
+                                                  min(max(p[1] for p in lost) - z_tip, cl.tool.flute_length))
+        return CutOutcome(CLStatus.RAPID if cl.move.is_rapid else CLStatus.ENGAGED, removed=removed, band_volumes=bands)
+
     def _candidates(self, motion: Move, tool: MillingTool, fp: SweepFootprint | None, open_start: bool,
                     ceiling: MaterialCeiling | None) -> list[Cell]:
         """The cells within the tool's reach of the path that may hold material the sweep could
@@ -417,7 +422,8 @@ class BRepEngine:
         # its Booleans, and a ball end mill's scallops are everywhere it went, so its quarters would
         # stay solid (docs/decisions/engine-cells.md)
         if (cell.layers is None and level_flat_cut and cell.square is not None
-                and cell.square.size > smallest_square(self.options.cell_size) and cell.square not in self._unsplittable):
+                and cell.square.size > smallest_square(self.options.cell_size)
+                and cell.square not in self._unsplittable):
             self._quarter(cell)
 
     @property
