@@ -376,9 +376,14 @@ def unstable_speed_ranges(grid: ChatterGrid, curves: tuple[np.ndarray, np.ndarra
         lo, hi = np.minimum.reduceat(n, starts, axis=0), np.maximum.reduceat(n, starts, axis=0)
         keep = (hi >= rpm_lo) & (lo <= rpm_hi)
         out.append(np.stack((lo[keep], hi[keep]), axis=1))
-    if not out or not sum(len(o) for o in out):
+    return np.clip(_merged(out), rpm_lo, rpm_hi)
+
+
+def _merged(parts: Sequence[np.ndarray]) -> np.ndarray:
+    """The union of speed ranges (rows ``(lo, hi)``), sorted, overlapping ones joined."""
+    if not parts or not sum(len(o) for o in parts):
         return np.zeros((0, 2))
-    r = np.concatenate(out)
+    r = np.concatenate(parts)
     r = r[np.argsort(r[:, 0])]
     merged = [r[0].copy()]
     for lo, hi in r[1:]:
@@ -386,49 +391,79 @@ def unstable_speed_ranges(grid: ChatterGrid, curves: tuple[np.ndarray, np.ndarra
             merged[-1][1] = max(merged[-1][1], hi)
         else:
             merged.append(np.array([lo, hi]))
-    return np.clip(np.array(merged), rpm_lo, rpm_hi)
+    return np.array(merged)
 
 
-def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: float, ap: float,
-                       rpm_lo: float, rpm_hi: float, curves: tuple[np.ndarray, np.ndarray] | None = None) -> float:
-    """The speed in ``[rpm_lo, rpm_hi]`` nearest to ``rpm`` where the ZOA limit exceeds ``ap`` (mm):
-    ``rpm`` itself when stable there, else the nearer end of its unstable range
-    (:func:`unstable_speed_ranges`) moved outwards in steps of 0.05 % until the limit there exceeds
-    ``ap``, then bisected to within 0.05 % / 4096 of the boundary; NaN when the whole range is unstable.
-    Whether a limit exceeds ``ap`` is decided on the lobe segments that can go below it alone
-    (:meth:`LobeSegments.of`), which gives the same answer as all of them."""
-    curves = curves if curves is not None else zoa_curves(alpha0, grid, ktc, flutes)
-    seg = LobeSegments.of(grid, curves, below=ap)
+@dataclass(frozen=True)
+class DepthNeed:
+    """What one CL needs of a spindle speed: a ZOA limit above ``depth`` (mm). ``segments``: its lobe
+    segments that can go below ``depth``; ``ranges``: its unstable speed ranges (rev/min) in the searched
+    range (:func:`unstable_speed_ranges`)."""
 
-    def stable(n: np.ndarray | float) -> np.ndarray:
-        return seg.a_lim(60.0 / (flutes * np.asarray(n, dtype=float))) > ap
+    depth: float
+    segments: LobeSegments
+    ranges: np.ndarray
 
-    if stable(rpm):
+    @classmethod
+    def of(cls, grid: ChatterGrid, curves: tuple[np.ndarray, np.ndarray], flutes: int, depth: float,
+           rpm_lo: float, rpm_hi: float) -> "DepthNeed":
+        return cls(depth, LobeSegments.of(grid, curves, below=depth),
+                   unstable_speed_ranges(grid, curves, flutes, depth, rpm_lo, rpm_hi))
+
+
+def nearest_speed_for_all(needs: Sequence[DepthNeed], flutes: int, rpm: float, rpm_lo: float,
+                          rpm_hi: float) -> float:
+    """The speed in ``[rpm_lo, rpm_hi]`` nearest to ``rpm`` where every CL's ZOA limit exceeds its
+    ``depth``: ``rpm`` itself when it does there, else the nearer end of a range in the union of the
+    CLs' unstable ranges moved outwards in steps of 0.05 % until every limit there exceeds its depth,
+    then bisected to within 0.05 % / 4096 of the boundary; NaN when no speed in the range does. Whether
+    a limit exceeds a depth is decided on the lobe segments that can go below it alone, which gives the
+    same answer as all of them."""
+
+    def stable(n: np.ndarray | float, segs: Sequence[LobeSegments]) -> np.ndarray:
+        period = 60.0 / (flutes * np.asarray(n, dtype=float))
+        ok = np.ones(np.shape(period), dtype=bool)
+        for need, seg in zip(needs, segs):
+            ok &= seg.a_lim(period) > need.depth
+        return ok
+
+    every = [need.segments for need in needs]
+    if stable(rpm, every):
         return float(rpm)
-    ranges = unstable_speed_ranges(grid, curves, flutes, ap, rpm_lo, rpm_hi)
     cands = []
-    for lo, hi in ranges:
+    for lo, hi in np.clip(_merged([need.ranges for need in needs]), rpm_lo, rpm_hi):
         if lo > rpm_lo:
             cands.append((lo, -1.0))
         if hi < rpm_hi:
             cands.append((hi, 1.0))
     for speed, sense in sorted(cands, key=lambda c: abs(c[0] - rpm)):
         steps = speed * (1 + sense * 5e-4 * np.arange(1, 21))
-        inside = (steps >= rpm_lo) & (steps <= rpm_hi)
-        ok = inside & stable(steps)
+        ok = (steps >= rpm_lo) & (steps <= rpm_hi) & stable(steps, every)
         if not ok.any():
             continue
         i = int(np.argmax(ok))
         inner, n = (steps[i - 1] if i else speed), steps[i]
-        near = seg.within(*sorted((60.0 / (flutes * inner), 60.0 / (flutes * n))))
+        bracket = sorted((60.0 / (flutes * inner), 60.0 / (flutes * n)))
+        near = [seg.within(*bracket) for seg in every]
         for _ in range(12):  # the boundary between the last unstable and the stable speed
             mid = 0.5 * (inner + n)
-            if near.a_lim(60.0 / (flutes * mid)) > ap:
+            if stable(mid, near):
                 n = mid
             else:
                 inner = mid
         return float(n)
     return math.nan
+
+
+def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: float, ap: float,
+                       rpm_lo: float, rpm_hi: float, curves: tuple[np.ndarray, np.ndarray] | None = None) -> float:
+    """The speed in ``[rpm_lo, rpm_hi]`` nearest to ``rpm`` where the ZOA limit exceeds ``ap`` (mm)
+    (:func:`nearest_speed_for_all` of this one CL); NaN when the whole range is unstable."""
+    curves = curves if curves is not None else zoa_curves(alpha0, grid, ktc, flutes)
+    if LobeSegments.of(grid, curves, below=ap).a_lim(60.0 / (flutes * rpm)) > ap:
+        return float(rpm)
+    return nearest_speed_for_all([DepthNeed.of(grid, curves, flutes, ap, rpm_lo, rpm_hi)], flutes, rpm, rpm_lo,
+                                 rpm_hi)
 
 
 # --------------------------------------------------------------------------------------------------

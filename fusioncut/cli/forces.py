@@ -301,11 +301,22 @@ def advise(
     slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Feed plot (.png/.svg; default OUT's name + "
                                                              "_feed.png)."),
+    modes: Optional[list[str]] = typer.Option(None, "--modes", help="Tool-tip dynamics (as for fusioncut "
+                                                                    "stability): adds the spindle speed advice."),
+    max_margin: float = typer.Option(0.8, "--max-margin", help="With --modes: the largest chatter margin ap / "
+                                                               "a_lim to hold per operation."),
+    rpm_min: Optional[float] = typer.Option(None, "--rpm-min", help="With --modes: lowest speed searched "
+                                                                    "(default: half the programmed)."),
+    rpm_max: Optional[float] = typer.Option(None, "--rpm-max", help="With --modes: highest speed searched "
+                                                                    "(default: 1.5 times the programmed)."),
 ) -> None:
     """Advise feeds that keep the load at a limit, and rewrite PROGRAM with them (only F words change).
 
     Writes OUT, OUT's name + _advice.csv (per CL: programmed and advised feed mm/min, what limited it,
     loads at both feeds) and the plot. Feeds are mm/min here; the program gets them in its own units.
+    With --modes also OUT's name + _speeds.csv: per operation the largest chatter margin (ZOA) at the
+    programmed speed and the nearest speed where every CL keeps --max-margin; the program's S words are
+    not changed (the feed cannot remove chatter: the ZOA limit does not depend on it).
     """
     import pandas as pd
 
@@ -319,6 +330,9 @@ def advise(
         raise ValueError(f"{plot}: unsupported plot format {plot.suffix!r} (use .png or .svg)")
     limit = FeedLimit(max_force=max_force, max_chip_thickness=max_chip, max_power=max_power, max_mrr=max_mrr,
                       min_feed=min_feed, max_feed=max_feed, air_feed=air_feed, raise_ramps=raise_ramps)
+    rpm_range = _rpm_range(rpm_min, rpm_max)
+    if not modes and (rpm_range is not None):
+        raise InputError("--rpm-min and --rpm-max search a spindle speed: give --modes too")
     s = _setup(results_dir, program, _coefficients(material, coefficients), rpm, flutes, helix, slice_height)
     mine = [i for i, m in enumerate(s.maps) if same_source_file(str(m.source.file), str(program))]
     if not mine:
@@ -372,7 +386,56 @@ def advise(
                       f"({advice.limit.min_feed:g} mm/min): note 'unreachable' in the advice table", highlight=False)
     for note in result.notes[:10]:
         console.print(f"[yellow]note:[/] {escape(note)}", highlight=False)
-    console.print(escape(f"wrote {out}, {out.stem}_advice.csv/.parquet, {plot.name}"), highlight=False)
+    wrote = f"wrote {out}, {out.stem}_advice.csv/.parquet, {plot.name}"
+    if modes:
+        _advise_speeds(s, mine, modes, max_margin, rpm_range, out.with_name(out.stem + "_speeds"))
+        wrote += f", {out.stem}_speeds.csv/.parquet"
+    console.print(escape(wrote), highlight=False)
+
+
+def _rpm_range(rpm_min: Optional[float], rpm_max: Optional[float]) -> Optional[tuple[float, float]]:
+    """``--rpm-min``/``--rpm-max``: both or neither, ``0 < min < max``."""
+    from fusioncut.errors import InputError
+
+    if rpm_min is None and rpm_max is None:
+        return None
+    if rpm_min is None or rpm_max is None:
+        raise InputError("give both --rpm-min and --rpm-max, or neither")
+    if not (0 < rpm_min < rpm_max and math.isfinite(rpm_max)):
+        raise InputError(f"need 0 < --rpm-min < --rpm-max, got {rpm_min:g}, {rpm_max:g}")
+    return (rpm_min, rpm_max)
+
+
+def _advise_speeds(s: _Setup, rows: list[int], modes: list[str], max_margin: float,
+                   rpm_range: Optional[tuple[float, float]], stem: Path) -> None:
+    """The spindle speed advice of the CLs ``rows`` per tool and operation: ``stem``.csv/.parquet and a table."""
+    import pandas as pd
+
+    from fusioncut.analysis.speed_advice import SPEED_COLUMNS, advise_speeds
+    from fusioncut.cli.stability import _tool_dynamics
+
+    dynamics = _tool_dynamics(modes, s.tools, None)
+    wanted = set(rows)
+    parts = []
+    for label, idx in s.groups.items():
+        idx = [i for i in idx if i in wanted]
+        if idx:
+            parts.append(advise_speeds([s.maps[i] for i in idx], s.tools[label], s.coefficients, dynamics[label],
+                                       [s.rpms[i] for i in idx], max_margin=max_margin, dz=s.dz, rpm_range=rpm_range))
+    table = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=[c[0] for c in SPEED_COLUMNS])
+    _write_table(table, stem, {c: (u, d) for c, u, d in SPEED_COLUMNS},
+                 {"max_margin": max_margin, "rpm_range": list(rpm_range) if rpm_range else None,
+                  "modes": {k: d.as_dict() for k, d in dynamics.items()}})
+    view = Table(title=f"Spindle speed per operation (chatter margin ap / a_lim, ZOA; hold <= {max_margin:g})")
+    for col in ("operation", "tool", "rpm", "CLs", "margin", "worst CL", "suggested rpm", "margin there"):
+        view.add_column(col, justify="left" if col in ("operation", "tool") else "right")
+    for r in table.itertuples():
+        view.add_row(escape(str(r.operation) or "-"), escape(str(r.tool)), f"{r.spindle_rpm:g}", str(r.engaged_cls),
+                     _fmt(r.margin_max, 3), str(r.worst_cl), _fmt(r.suggested_rpm, 6),
+                     _fmt(r.margin_max_suggested, 3))
+    console.print(view)
+    if not len(table):
+        console.print("[yellow]note:[/] no engaged CL with a spindle speed: no speed advice", highlight=False)
 
 
 def _check_same_program(s: _Setup, rows: list[int], program: Path) -> None:

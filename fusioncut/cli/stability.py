@@ -21,7 +21,8 @@ from rich.console import Console
 from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
-from fusioncut.cli.forces import _COEFFICIENTS_HELP, _MATERIAL_HELP, _coefficients, _setup, _tool_info, _write_table
+from fusioncut.cli.forces import (_COEFFICIENTS_HELP, _MATERIAL_HELP, _coefficients, _rpm_range, _setup, _tool_info,
+                                  _write_table)
 
 console = Console()
 
@@ -68,15 +69,8 @@ def stability(
 
     from fusioncut.analysis.deflection import DEFLECTION_COLUMNS, SteppedCantilever, deflection_table
     from fusioncut.analysis.stability import STABILITY_COLUMNS, stability_table
-    from fusioncut.errors import InputError
 
-    if (rpm_min is None) != (rpm_max is None):
-        raise InputError("give both --rpm-min and --rpm-max, or neither")
-    rpm_range = None
-    if rpm_min is not None and rpm_max is not None:
-        if not (0 < rpm_min < rpm_max and math.isfinite(rpm_max)):
-            raise InputError(f"need 0 < --rpm-min < --rpm-max, got {rpm_min:g}, {rpm_max:g}")
-        rpm_range = (rpm_min, rpm_max)
+    rpm_range = _rpm_range(rpm_min, rpm_max)
     s = _setup(results_dir, program, _coefficients(material, coefficients), rpm, flutes, helix, slice_height)
     dynamics = _tool_dynamics(modes, s.tools, n_modes)
     parts = []
