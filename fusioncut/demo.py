@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from fusioncut.io.gcode.writer import write_gcode
 from fusioncut.io.job import ToolSpec
 from fusioncut.model import ArcMove, BallEndMill, BoxStock, FlatEndMill, LinearMove, Move, Toolpath
 
@@ -97,42 +98,10 @@ DEMO_FILE = "demo.ngc"
 DEMO_OPTIONS = {"slice_height": 1.0, "max_segment_length": 2.0}
 
 
-def _num(v: float) -> str:
-    # repr-exact for the demo's decimal coordinates, without float noise like 8.000000000001
-    s = f"{v:.6f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
-
-
 def demo_gcode() -> str:
-    """The demo toolpath as G-code, preceded by one rapid from the origin to the demo's start point."""
-    tp = demo_toolpath()
-    # the title shares its line with codes: a standalone comment would name an operation
-    lines = ["%", "G21 G90 G17 G94 G90.1 (FusionCut demo: face, slot, trochoidal, contour, ball finish)"]
-    tool, op, feed = None, None, None
-    for k, m in enumerate(tp.moves):
-        if m.tool != tool:
-            lines.append(f"T{m.tool} M6")
-            lines.append("M3")
-            tool = m.tool
-        if m.operation != op:
-            lines.append(f"({m.operation})")
-            op = m.operation
-        if k == 0:  # a program starts at the origin; go to the demo's start point first
-            lines.append(f"G0 X{_num(m.start[0])} Y{_num(m.start[1])} Z{_num(m.start[2])}")
-        x, y, z = (_num(c) for c in m.end)
-        if isinstance(m, LinearMove) and m.rapid:
-            lines.append(f"G0 X{x} Y{y} Z{z}")
-            continue
-        f = ""
-        if m.feed is not None and m.feed != feed:
-            f, feed = f" F{_num(m.feed)}", m.feed
-        if isinstance(m, ArcMove):
-            g = "G2" if m.clockwise else "G3"
-            lines.append(f"{g} X{x} Y{y} Z{z} I{_num(m.center[0])} J{_num(m.center[1])}{f}")
-        else:
-            lines.append(f"G1 X{x} Y{y} Z{z}{f}")
-    lines += ["M5", "M30", "%"]
-    return "\n".join(lines) + "\n"
+    """The demo toolpath as G-code (:func:`fusioncut.io.gcode.writer.write_gcode`: a rapid from the
+    origin to the demo's start point first)."""
+    return write_gcode(demo_toolpath(), title="FusionCut demo: face, slot, trochoidal, contour, ball finish")
 
 
 def demo_job(name: str = "demo", **options: Any) -> dict[str, Any]:

@@ -21,13 +21,14 @@ FACE = SHARED / "fusion-posted" / "1072_face_otherside.nc"
 PROGRAM = """\
 (T1 D=6 CR=0 - ZMIN=-2 - flat end mill)
 G21 G90 G17
-(Slot)
+(Slot and arc)
 T1 M6
 S10000 M3
 G0 X-5 Y5 Z5
 G1 Z-2 F300
-G1 X12 F600
-G1 Y9
+G1 X10 F600
+G3 X20 Y5 I5 J0
+G1 X25
 G0 Z5
 M30
 """
