@@ -88,9 +88,8 @@ def demo_stock() -> BoxStock:
 
 # -------------------------------------------------------------------------------------------------
 # The demo as a job of files: the CLI's `fusioncut demo` and the service's demo job run this one job,
-# so both read the same G-code and make the same CLs (they once differed: 753 CLs straight from the
-# moves above, 768 from the G-code with its first rapid from the origin, and CL 720 air in one and
-# engaged in the other).
+# so both read the same G-code and make the same CLs (the G-code's first rapid from the origin is a
+# CL the moves above do not have).
 
 DEMO_FILE = "demo.ngc"
 # the demo's job options, for `fusioncut demo`, `fusioncut view demo` and the service's demo alike:
