@@ -47,7 +47,7 @@ MAX_WARNINGS_SHOWN = 20  # the table view; --json lists them all
 def inspect_file(path: Path, tools_path: Path | None = None, strict: bool = False,
                  max_moves: int | None = DEFAULT_MAX_MOVES) -> dict[str, Any]:
     """The inspection report of ``path`` (see the module docstring); raises the readers' errors.
-    ``max_moves`` bounds what a G-code program may expand to (:mod:`fusioncut.io.gcode_budget`).
+    ``max_moves`` bounds what a G-code program may expand to (:mod:`fusioncut.io.gcode.budget`).
 
     The format is the one :mod:`fusioncut.io.readers` reads the file with; a ``.json`` file is a
     Fusion tool library when it holds ``data`` and no ``toolpath``, else a Fusion JSON toolpath."""
