@@ -202,6 +202,28 @@ def test_sd_converges_to_the_exact_boundary_of_a_constant_delay_equation() -> No
         assert errors[0] / errors[1] > 3 and errors[1] / errors[2] > 3 and errors[2] < 5e-3, errors
 
 
+def test_zoa_of_coupled_modes_is_the_exact_boundary_sd_converges_to() -> None:
+    """Modes in x and y (two in x, one in y: docs/stability_modes_example.json) coupled by a constant
+    directional matrix with cross terms (a slot's mean, b = N/2 [[-Kr, -1], [1, -Kr]]): the milling
+    equation is then the autonomous delay equation whose boundary the ZOA eigenvalue problem gives exactly
+    (alpha0 = 2 pi b / N), so SD, a time-domain method sharing nothing with it but the modes, must
+    converge to ZOA's limit at second order. This stands in for the two-mode example of Altintas's
+    Manufacturing Automation, whose tabulated numbers are not at hand."""
+    dyn = ToolDynamics((Mode(600.0, 0.035, 5.6e6), Mode(1450.0, 0.02, 1.4e7)), (Mode(660.0, 0.03, 5.7e6),))
+    system = ModalSystem.from_dynamics(dyn)
+    grid = chatter_grid(dyn)
+    b = np.array([[-KR, -1.0], [1.0, -KR]])  # N = 2
+    cd = cl_directional(emap([(0, 180)]), tool(), COEF, dz=1.0)
+    for rpm in (7000.0, 16000.0):
+        exact = zoa_a_lim(2 * math.pi * b / 2, grid, KTC, 2, rpm)[0]
+        assert 0.01 < exact < 5.0
+        errors = []
+        for steps in (20, 40, 80):
+            bs = np.broadcast_to(b, (steps, 2, 2))
+            errors.append(abs(_bisect_constant(cd, system, rpm, bs, steps) / exact - 1))
+        assert errors[0] / errors[1] > 3 and errors[1] / errors[2] > 3 and errors[2] < 5e-3, (rpm, errors)
+
+
 def test_sd_against_zoa_for_a_slot_and_its_convergence() -> None:
     """A 4-flute, 30 deg helix slot (directional factor nearly constant): SD and ZOA within 10 %; the
     2-flute straight slot of the benchmark: SD's limit settles as its steps grow."""
