@@ -147,7 +147,8 @@ def stock_top(toolpath: Toolpath) -> tuple[float, str]:
         rule = "highest feed move (no sideways feed, no cutting below z = 0)"
     if top <= z_min + _LEVEL_TOL:
         raise InputError(
-            f"cannot infer the stock top: all cutting happens at z = {top:.6g}; give the stock top explicitly",
+            f"cannot infer the stock top: all cutting happens at z = {top:.6g}; give the stock top explicitly "
+            "(a job's stock_top, or `fusioncut run --stock-top Z`) or the whole stock (`--stock box:x0,y0,z0,x1,y1,z1`)",
             SourceLocation(toolpath.source),
         )
     return top, rule
