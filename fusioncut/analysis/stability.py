@@ -546,13 +546,22 @@ def sd_multipliers(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.n
                    a_mm: np.ndarray | float, steps: int = 40, substeps: int = 8,
                    b_steps: np.ndarray | None = None) -> np.ndarray:
     """Eigenvalues of the first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``, shape
-    (pairs, 2 n + steps n) for ``n`` modes."""
+    (pairs, 2 n + steps r) for ``n`` modes in ``r`` directions (1 or 2).
+
+    The delay enters only through the tool's displacement along the directions that have modes, ``R q``
+    (``R`` the nonzero rows of ``P``): the delayed states kept are those ``r`` displacements, not the
+    ``n`` modal coordinates, which leaves out only multipliers that are zero."""
     rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
     a_mm = np.atleast_1d(np.asarray(a_mm, dtype=float))
     rpm, a_mm = np.broadcast_arrays(rpm, a_mm)
     nb, n, m = len(rpm), len(system.m), steps
     b = _step_matrices(cd, steps, substeps) if b_steps is None else b_steps
-    w = 0.5 * ktc * 1e6 * np.einsum("ai,sab,bj->sij", system.p, b, system.p)  # (steps, n, n) N/m per m
+    dirs = np.flatnonzero(np.abs(system.p).sum(axis=1) > 0)
+    red = system.p[dirs]  # R: (r, n)
+    r = len(dirs)
+    # W = P^T B P = R^T B_r R (N/m per m): the cut's stiffness on the modes, and its delayed input on R q
+    w_in = 0.5 * ktc * 1e6 * np.einsum("ai,sab->sib", red, b[:, dirs][:, :, dirs])  # (steps, n, r)
+    w = w_in @ red  # (steps, n, n)
     minv = 1.0 / system.m
     dt = 60.0 / (cd.flutes * rpm) / m  # (nb,)
     a_si = a_mm * 1e-3
@@ -565,20 +574,21 @@ def sd_multipliers(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.n
     amat[:, :, n:, n:] = -np.diag(minv * system.c)
     phi0, phi1, f2 = _interval_integrals(amat, dt[:, None])
     phi2 = f2 / dt[:, None, None, None]  # int_0^dt e^{A(dt-s)} s ds / dt
-    # delayed term: y'' gets -a M^-1 W q(t - T); its input matrix acts on the velocity rows
-    bq = -cut
-    c_old = (phi1 - phi2)[..., n:] @ bq   # coefficient of q_{i-m}
-    c_new = phi2[..., n:] @ bq            # coefficient of q_{i-m+1}
-    # rows of the monodromy matrix, propagated step by step: y (the state) and the delayed positions
-    # q_{i-1} .. q_{i-m} (a list: shifting it moves references, not rows)
-    dim = d2 + m * n
+    # delayed term: y'' gets -a M^-1 R^T B_r (R q)(t - T); its input matrix acts on the velocity rows
+    bq = -a_si[:, None, None, None] * minv[None, None, :, None] * w_in[None]  # (nb, steps, n, r)
+    c_old = (phi1 - phi2)[..., n:] @ bq   # coefficient of R q_{i-m}
+    c_new = phi2[..., n:] @ bq            # coefficient of R q_{i-m+1}
+    # rows of the monodromy matrix, propagated step by step: y (the state) and the delayed displacements
+    # R q_{i-1} .. R q_{i-m} (a list: shifting it moves references, not rows)
+    dim = d2 + m * r
     eye = np.broadcast_to(np.eye(dim), (nb, dim, dim))
     y = eye[:, :d2].copy()
-    delayed = [eye[:, d2 + j * n: d2 + (j + 1) * n] for j in range(m)]
+    delayed = [eye[:, d2 + j * r: d2 + (j + 1) * r] for j in range(m)]
     for i in range(m):
-        newer = delayed[-2] if m > 1 else y[:, :n]  # q_{i-m+1}
+        now = red @ y[:, :n]
+        newer = delayed[-2] if m > 1 else now  # R q_{i-m+1}
         top = phi0[:, i] @ y + c_old[:, i] @ delayed[-1] + c_new[:, i] @ newer
-        delayed = [y[:, :n]] + delayed[:-1]
+        delayed = [now] + delayed[:-1]
         y = top
     z = np.concatenate([y, *delayed], axis=1)
     return np.linalg.eigvals(z)
