@@ -6,11 +6,14 @@
   are the column tables of :mod:`fusioncut.io.result_columns`, row for row.
 * The README holds no date and no time of day. Measurements with their dates belong in
   ``docs/benchmark.md``.
-* Every relative link points to a file in the repository.
+* Every relative link points to a file in the repository; every repository path the README names
+  (``fusioncut/...``, ``docs/...``) exists, and every dotted name (``fusioncut.io.results.load_results``)
+  imports.
 """
 from __future__ import annotations
 
 import contextlib
+import importlib
 import io
 import re
 from pathlib import Path
@@ -81,3 +84,36 @@ def test_readme_links_point_to_files_in_the_repository():
     assert local, "no relative link found: the pattern is wrong"
     missing = [link for link in local if not (ROOT / link).exists()]
     assert not missing, f"README.md links to missing files: {missing}"
+
+
+def test_readme_paths_exist():
+    paths = set(re.findall(r"(?<![\w/.-])((?:fusioncut|tests|docs|benchmarks|frontend|\.ci)/[\w./-]*\w)", TEXT))
+    assert paths, "no repository path found: the pattern is wrong"
+    missing = sorted(p for p in paths if not (ROOT / p).exists())
+    assert not missing, f"README.md names paths that do not exist: {missing}"
+
+
+def _resolve(dotted: str) -> object:
+    """The object a dotted name names: the longest importable module prefix, then attributes."""
+    parts = dotted.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+            break
+        except ModuleNotFoundError:
+            continue
+    for name in parts[i:]:
+        obj = getattr(obj, name)
+    return obj
+
+
+def test_readme_dotted_names_import():
+    names = set(re.findall(r"(?<![\w/.-])(fusioncut(?:\.\w+)+)", TEXT))
+    assert names, "no dotted name found: the pattern is wrong"
+    bad = []
+    for name in sorted(names):
+        try:
+            _resolve(name)
+        except (ImportError, AttributeError) as e:
+            bad.append(f"{name} ({e})")
+    assert not bad, f"README.md names what the code does not have: {bad}"
