@@ -8,10 +8,10 @@
 * ``fusioncut advise RESULTS_DIR --program FILE --max-force N --out NEW``: feed advice, the program
   rewritten with only its F words changed, the advice table and a plot of programmed vs advised feed.
 
-Results tables do not keep the spindle speed, the flute count or helix angle, nor the engine's slice
-height: the speed and the tool come from ``--program`` (its S words and tool comments) or from
-``--rpm``/``--flutes``/``--helix`` (the tool then from the results' metadata, flat and ball end mills
-only); the slice height is inferred from the slices (``--slice-height`` overrides).
+A results folder records each CL's spindle speed, the tools (full records) and the engine's slice
+height (:func:`_setup`); ``--rpm``, ``--flutes`` and ``--helix`` override them. Folders written before
+those were recorded take them from ``--program`` (S words, tool comments) or the options, and the slice
+height from ``--slice-height`` (else inferred from the slices).
 """
 from __future__ import annotations
 
@@ -140,30 +140,37 @@ def _coefficients(material: Optional[str], coefficients_file: Optional[Path]) ->
 
 def _setup(results_dir: Path, program: Optional[Path], coefficients: Any, rpm: Optional[float],
            flutes: Optional[int], helix: Optional[float], slice_height: Optional[float]) -> _Setup:
-    """``coefficients``: from :func:`_coefficients`."""
+    """What forces, advise and stability need of a results folder, from what it records.
+
+    ``coefficients``: from :func:`_coefficients`. Slice height: the recorded one (``--slice-height``
+    only for folders that do not record it, and must agree otherwise;
+    :func:`~fusioncut.analysis.result_maps.results_slice_height`). Tools: the recorded full records,
+    else the program's (``--program``), else the partial description older folders keep; ``--flutes``
+    and ``--helix`` override. Spindle speed per CL: ``--rpm`` for all, else the recorded one, else (a CL
+    without one, or an older folder) the program's S word at the CL's line.
+    """
     from fusioncut.analysis.feed import same_source_file
-    from fusioncut.analysis.forces import engagement_maps_from_results, infer_slice_height
+    from fusioncut.analysis.result_maps import engagement_maps_from_results, results_slice_height
     from fusioncut.errors import InputError
     from fusioncut.io.results import load_results
 
     results = load_results(results_dir)
     if not len(results.cl):
         raise InputError("the results hold no CL", results_dir)
-    dz = slice_height if slice_height is not None else infer_slice_height(results)
+    dz = results_slice_height(results, slice_height)
     maps = engagement_maps_from_results(results, dz)
     tp = None
     if program is not None:
         from fusioncut.io.gcode import read_gcode
 
         tp = read_gcode(program)
-    # tools by label, and the spindle speed of each CL
     tools: dict[str, Any] = {}
     groups: dict[str, list[int]] = {}
     for i, m in enumerate(maps):
         groups.setdefault(m.tool, []).append(i)
     for label in groups:
-        tool = None
-        if tp is not None:
+        tool = results.tools.get(label)
+        if tool is None and tp is not None:
             tool = next((t for t in tp.tools.values() if t.label == label), None)
         if tool is None:
             tool = _tool_from_metadata(label, results.metadata)
@@ -178,11 +185,16 @@ def _setup(results_dir: Path, program: Optional[Path], coefficients: Any, rpm: O
         if not (rpm > 0 and math.isfinite(rpm)):
             raise InputError(f"--rpm must be > 0 rev/min, got {rpm}")
         rpms = [rpm] * len(maps)
-    elif tp is not None:
-        by_line = {m.source.line: m.spindle_rpm for m in tp.moves if m.spindle_rpm}
-        rpms = [by_line.get(m.source.line) if same_source_file(str(m.source.file), str(program)) else None for m in maps]
     else:
-        raise InputError("the spindle speed is not in the results: give --rpm or the program (--program)")
+        recorded = results.cl["spindle_rpm"].to_numpy(dtype=float)
+        rpms = [None if math.isnan(n) else float(n) for n in recorded]
+        if tp is not None:
+            by_line = {m.source.line: m.spindle_rpm for m in tp.moves if m.spindle_rpm}
+            rpms = [n if n is not None else by_line.get(m.source.line)
+                    if same_source_file(str(m.source.file), str(program)) else None for n, m in zip(rpms, maps)]
+        elif "spindle_rpm" in results.missing:
+            raise InputError("the spindle speeds are not recorded (results written before they were): give --rpm "
+                             "or the program (--program)", results_dir)
     return _Setup(results, maps, groups, tools, rpms, coefficients, dz, tp)
 
 
@@ -195,14 +207,14 @@ _COEFFICIENTS_HELP = "Cutting coefficients file (JSON, as fusioncut calibrate wr
 def forces(
     results_dir: Path = typer.Argument(..., help="Results directory of a run."),
     program: Optional[Path] = typer.Option(None, "--program", help="The program the results came from: spindle "
-                                                                    "speeds and tool geometry."),
+                                                                    "speeds and tools the results do not record."),
     material: Optional[str] = typer.Option(None, "--material", help=_MATERIAL_HELP),
     coefficients: Optional[Path] = typer.Option(None, "--coefficients", help=_COEFFICIENTS_HELP),
     rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min) for every CL."),
     flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
     helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
-    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm "
-                                                                              "(default: inferred)."),
+    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm, for "
+                                                                              "results that do not record it."),
     samples: int = typer.Option(360, "--samples", min=1, help="Spindle angles per revolution."),
     plot: bool = typer.Option(True, "--plot/--no-plot", help="Also draw forces.png."),
 ) -> None:
@@ -298,7 +310,8 @@ def advise(
     rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min; default: the program's S)."),
     flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
     helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
-    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm."),
+    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm, for "
+                                                                              "results that do not record it."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Feed plot (.png/.svg; default OUT's name + "
                                                              "_feed.png)."),
     modes: Optional[list[str]] = typer.Option(None, "--modes", help="Tool-tip dynamics (as for fusioncut "

@@ -4,9 +4,9 @@ Writes ``stability.csv`` / ``stability.parquet`` (columns
 :data:`fusioncut.analysis.stability.STABILITY_COLUMNS`), ``lobes.png`` (ZOA and SD limit against the
 spindle speed for one CL, with every CL's (speed, ap) point of the same tool over it) and
 ``margin.png`` (ap / a_lim along the program); with ``--stick-out`` also the static deflection columns
-(:data:`fusioncut.analysis.deflection.DEFLECTION_COLUMNS`) and ``deflection.png``. The spindle speed,
-flute count and helix come as for ``fusioncut forces`` (``--program`` or ``--rpm``/``--flutes``/
-``--helix``); the cutting coefficients
+(:data:`fusioncut.analysis.deflection.DEFLECTION_COLUMNS`) and ``deflection.png``. The spindle speeds,
+tools and slice height come from the results as for ``fusioncut forces`` (``--rpm``/``--flutes``/
+``--helix`` override; ``--program`` and ``--slice-height`` for older folders); the cutting coefficients
 from ``--material`` or a coefficients file (``--coefficients``, JSON, see
 :func:`fusioncut.analysis.calibrate.read_coefficients_json`).
 """
@@ -37,12 +37,12 @@ def stability(
     material: Optional[str] = typer.Option(None, "--material", help=_MATERIAL_HELP),
     coefficients: Optional[Path] = typer.Option(None, "--coefficients", help=_COEFFICIENTS_HELP),
     program: Optional[Path] = typer.Option(None, "--program", help="The program the results came from: spindle "
-                                                                    "speeds and tool geometry."),
+                                                                    "speeds and tools the results do not record."),
     rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min) for every CL."),
     flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
     helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
-    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm "
-                                                                              "(default: inferred)."),
+    slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm, for "
+                                                                              "results that do not record it."),
     sd: bool = typer.Option(True, "--sd/--no-sd", help="Also the semi-discretization limit (slower)."),
     sd_steps: int = typer.Option(30, "--sd-steps", min=4, help="Least SD steps per tooth period."),
     sd_max_steps: int = typer.Option(120, "--sd-max-steps", min=4, help="Most SD steps per tooth period; "
