@@ -63,13 +63,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from fusioncut.analysis.forces import (
-    CuttingCoefficients,
-    compute_cl_forces,
-    engagement_maps_from_results,
-    infer_slice_height,
-    peak_chip_thickness,
-)
+from fusioncut.analysis.forces import CuttingCoefficients, compute_cl_forces, peak_chip_thickness
+from fusioncut.analysis.result_maps import engagement_maps_from_results, results_slice_height
 from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.tools import MillingTool
@@ -403,9 +398,11 @@ def advise_feeds(
 
     ``source`` is a sequence of :class:`~fusioncut.model.engagement.EngagementMap` (one tool) or
     loaded results (:func:`fusioncut.io.results.load_results`; maps rebuilt by
-    :func:`~fusioncut.analysis.forces.engagement_maps_from_results`, path lengths from the table).
-    ``rpm`` (rev/min): one spindle speed or one per CL (``None`` where unknown); needed for the force,
-    chip and power limits. ``dz`` (mm): the engine's slice height (inferred from result tables;
+    :func:`~fusioncut.analysis.result_maps.engagement_maps_from_results`, path lengths, spindle speeds
+    and the slice height from what the folder records).
+    ``rpm`` (rev/min): one spindle speed or one per CL (``None`` where unknown; results: the recorded
+    speeds by default); needed for the force, chip and power limits. ``dz`` (mm): the engine's slice
+    height (results: the recorded one, :func:`~fusioncut.analysis.result_maps.results_slice_height`;
     see :func:`~fusioncut.analysis.forces.compute_cl_forces`). ``lengths`` (mm): path length per CL
     (default: the chord). ``quantum``: feed step as a fraction of the programmed feed (0: none).
     ``min_run_length`` (mm): shortest stretch a raised feed must last (default: the tool diameter;
@@ -413,12 +410,12 @@ def advise_feeds(
     """
     slice_height = None
     if _is_results(source):
-        if dz is None:
-            dz = infer_slice_height(source)
-        slice_height = dz
+        dz = slice_height = results_slice_height(source, dz)
         maps = engagement_maps_from_results(source, dz)
         if lengths is None:
             lengths = source.cl["length_mm"].to_numpy(dtype=float)
+        if rpm is None:
+            rpm = [None if math.isnan(n) else float(n) for n in source.cl["spindle_rpm"].to_numpy(dtype=float)]
     else:
         maps = list(source)
     n = len(maps)

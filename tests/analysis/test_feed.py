@@ -351,6 +351,27 @@ def test_advice_from_saved_results_equals_advice_from_maps(tmp_path):
     assert a.slice_height == 1.0
 
 
+def test_advice_from_results_uses_their_recorded_speeds_and_slice_height(tmp_path):
+    """A folder recording each CL's spindle speed and the slice height needs neither: the advice equals
+    the advice of the maps with those speeds; a slice height that disagrees is refused."""
+    from fusioncut.engines.base import EngineOptions
+
+    maps = [cl(i, (arc,)) for i, arc in enumerate([(0.0, 180.0), (20.0, 180.0), (90.0, 180.0)], start=1)]
+    speeds = [6000.0, 9000.0, None]
+    with ResultWriter(tmp_path, tools={"T1": HELICAL}, options=EngineOptions(slice_height=A / 6)) as w:
+        for m, n in zip(maps, speeds):
+            w.add(m, length_mm=1.0, spindle_rpm=n)
+    results = load_results(tmp_path)
+    lim = FeedLimit(max_force=600.0, max_feed=1e6)
+    a = advise_feeds(results, HELICAL, K, lim, quantum=0, min_run_length=0)
+    b = advise_feeds(maps, HELICAL, K, lim, rpm=speeds, dz=A / 6, lengths=[1.0] * 3, quantum=0, min_run_length=0)
+    np.testing.assert_allclose(a.table["advised_feed_mm_min"], b.table["advised_feed_mm_min"], rtol=1e-12)
+    assert a.slice_height == pytest.approx(A / 6)
+    assert a.table["advised_feed_mm_min"].iloc[0] != a.table["advised_feed_mm_min"].iloc[1]
+    with pytest.raises(InputError, match="slice height"):
+        advise_feeds(results, HELICAL, K, lim, dz=1.0)
+
+
 def test_a_plunge_over_the_limit_keeps_its_feed():
     # a plunge (no horizontal feed) with edge forces over the limit: no feed helps, none is imposed
     plunge = cl(4, dx=0.0, dz_move=-0.5, intervals=((0.0, 90.0),))
