@@ -460,10 +460,11 @@ def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes
     """The speed in ``[rpm_lo, rpm_hi]`` nearest to ``rpm`` where the ZOA limit exceeds ``ap`` (mm)
     (:func:`nearest_speed_for_all` of this one CL); NaN when the whole range is unstable."""
     curves = curves if curves is not None else zoa_curves(alpha0, grid, ktc, flutes)
-    if LobeSegments.of(grid, curves, below=ap).a_lim(60.0 / (flutes * rpm)) > ap:
+    seg = LobeSegments.of(grid, curves, below=ap)
+    if seg.a_lim(60.0 / (flutes * rpm)) > ap:
         return float(rpm)
-    return nearest_speed_for_all([DepthNeed.of(grid, curves, flutes, ap, rpm_lo, rpm_hi)], flutes, rpm, rpm_lo,
-                                 rpm_hi)
+    need = DepthNeed(ap, seg, unstable_speed_ranges(grid, curves, flutes, ap, rpm_lo, rpm_hi))
+    return nearest_speed_for_all([need], flutes, rpm, rpm_lo, rpm_hi)
 
 
 # --------------------------------------------------------------------------------------------------
