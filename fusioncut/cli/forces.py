@@ -344,7 +344,7 @@ def advise(
     limit = FeedLimit(max_force=max_force, max_chip_thickness=max_chip, max_power=max_power, max_mrr=max_mrr,
                       min_feed=min_feed, max_feed=max_feed, air_feed=air_feed, raise_ramps=raise_ramps)
     rpm_range = _rpm_range(rpm_min, rpm_max)
-    if not modes and (rpm_range is not None):
+    if rpm_range is not None and not modes:
         raise InputError("--rpm-min and --rpm-max search a spindle speed: give --modes too")
     s = _setup(results_dir, program, _coefficients(material, coefficients), rpm, flutes, helix, slice_height)
     mine = [i for i, m in enumerate(s.maps) if same_source_file(str(m.source.file), str(program))]
