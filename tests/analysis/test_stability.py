@@ -172,6 +172,60 @@ def test_sd_free_vibration_is_exact() -> None:
         assert rho == pytest.approx(math.exp(-ZETA * 2 * math.pi * FN * 60 / (2 * rpm)), rel=1e-9)
 
 
+def _full_monodromy_radius(cd, system, rpm: float, a_mm: float, steps: int) -> float:
+    """Reference SD: every modal coordinate kept as a delayed state (2 n + steps n), each interval's
+    matrices from the exponential of Van Loan's augmented generator [[A, I, 0], [0, 0, I], [0, 0, 0]] dt
+    by a plain Taylor series with scaling and squaring, the monodromy matrix built as a product."""
+    from fusioncut.analysis.stability import _step_matrices
+
+    def expm(x: np.ndarray) -> np.ndarray:
+        s = max(0, math.ceil(math.log2(max(np.abs(x).sum(axis=0).max(), 1e-300) / 0.25)))
+        y, term, out = x / 2.0 ** s, np.eye(len(x)), np.eye(len(x))
+        for k in range(1, 30):
+            term = term @ y / k
+            out = out + term
+        for _ in range(s):
+            out = out @ out
+        return out
+
+    n, m = len(system.m), steps
+    b = _step_matrices(cd, steps, 8)
+    dt = 60.0 / (cd.flutes * rpm) / m
+    dim = 2 * n + m * n
+    z = np.eye(dim)
+    for i in range(m):
+        w = 0.5 * KTC * 1e6 * system.p.T @ b[i] @ system.p * a_mm * 1e-3 / system.m[:, None]
+        a = np.zeros((2 * n, 2 * n))
+        a[:n, n:] = np.eye(n)
+        a[n:, :n] = -np.diag(system.k / system.m) + w
+        a[n:, n:] = -np.diag(system.c / system.m)
+        gen = np.zeros((6 * n, 6 * n))
+        gen[:2 * n, :2 * n], gen[:2 * n, 2 * n:4 * n], gen[2 * n:4 * n, 4 * n:] = a, np.eye(2 * n), np.eye(2 * n)
+        e = expm(gen * dt)
+        phi0, phi1, phi2 = e[:2 * n, :2 * n], e[:2 * n, 2 * n:4 * n], e[:2 * n, 4 * n:] / dt
+        step = np.zeros((dim, dim))
+        step[:2 * n, :2 * n] = phi0
+        step[:2 * n, 2 * n + (m - 1) * n:] = (phi1 - phi2)[:, n:] @ -w        # q(t_i - T)
+        newer = (2 * n + (m - 2) * n) if m > 1 else 0
+        step[:2 * n, newer:newer + n] += phi2[:, n:] @ -w                      # q(t_i - T + dt)
+        step[2 * n:3 * n, :n] = np.eye(n)
+        step[3 * n:, 2 * n:2 * n + (m - 1) * n] = np.eye((m - 1) * n)
+        z = step @ z
+    return float(np.abs(np.linalg.eigvals(z)).max())
+
+
+def test_sd_equals_a_reference_keeping_every_modal_coordinate() -> None:
+    """Three modes in two directions (docs' example) on a 30 deg helix half-immersion cut: the monodromy
+    that keeps only the delayed displacement along x and y, with its interval integrals from Taylor
+    series and interval doubling, has the spectral radius of the plain construction."""
+    dyn = ToolDynamics((Mode(600.0, 0.035, 5.6e6), Mode(1450.0, 0.02, 1.4e7)), (Mode(660.0, 0.03, 5.7e6),))
+    system = ModalSystem.from_dynamics(dyn)
+    cd = cl_directional(emap([(90, 180)], depth=2.0, slices=4), tool(3, 30.0), COEF, dz=0.5)
+    for rpm, a in ((6000.0, 0.5), (11000.0, 1.5), (17000.0, 3.0)):
+        got = sd_spectral_radius(cd, system, KTC, rpm, a, steps=12)[0]
+        assert got == pytest.approx(_full_monodromy_radius(cd, system, rpm, a, 12), rel=1e-9), (rpm, a)
+
+
 def _bisect_constant(cd, system, rpm: float, b: np.ndarray, steps: int) -> float:
     lo, hi = 0.01, 5.0
     for _ in range(40):
