@@ -339,7 +339,7 @@ def read_coefficients_json(path: str | Path) -> CuttingCoefficients:
     if bad:
         raise InputError(f"coefficient(s) {', '.join(bad)} must be numbers", path)
     units = data.get("units", COEFFICIENT_UNITS)
-    if not isinstance(units, dict) or any(units.get(k, COEFFICIENT_UNITS[k]) != u for k, u in COEFFICIENT_UNITS.items()):
+    if not isinstance(units, dict) or any(units.get(k, u) != u for k, u in COEFFICIENT_UNITS.items()):
         raise InputError(f"'units' must be {COEFFICIENT_UNITS} (convert the values), got {units!r}", path)
     try:
         coeffs = CuttingCoefficients(**{k: float(data[k]) for k in COEFFICIENT_KEYS},

@@ -307,7 +307,8 @@ def advise(
                                                                     "last (default: tool diameter)."),
     material: Optional[str] = typer.Option(None, "--material", help=_MATERIAL_HELP),
     coefficients: Optional[Path] = typer.Option(None, "--coefficients", help=_COEFFICIENTS_HELP),
-    rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min; default: the program's S)."),
+    rpm: Optional[float] = typer.Option(None, "--rpm", help="Spindle speed (rev/min) for every CL (default: the "
+                                                            "recorded ones, else the program's S)."),
     flutes: Optional[int] = typer.Option(None, "--flutes", min=1, help="Flute count (overrides the tool's)."),
     helix: Optional[float] = typer.Option(None, "--helix", help="Helix angle, deg (overrides the tool's)."),
     slice_height: Optional[float] = typer.Option(None, "--slice-height", help="Engine slice height, mm, for "

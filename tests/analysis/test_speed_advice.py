@@ -51,8 +51,9 @@ def cl(i: int, arc: tuple[float, float], depth: float, line: int, feed: float, o
 def program_maps(file: str = "p.nc") -> list[EngagementMap]:
     """A 1 mm slot (SLOT: a margin above 1 at 9000 rev/min with the example modes) and a 2 mm cut of
     60 deg down-milling (FINISH: below 0.8), two CLs each, in 0.25 mm slices."""
-    return [cl(0, (0.0, 180.0), 1.0, 10, 900.0, "SLOT", file), cl(1, (0.0, 180.0), 1.0, 11, 900.0, "SLOT", file),
-            cl(2, (120.0, 180.0), 2.0, 13, 600.0, "FINISH", file), cl(3, (120.0, 180.0), 2.0, 14, 600.0, "FINISH", file)]
+    slot, finish = ((0.0, 180.0), 1.0, 900.0, "SLOT"), ((120.0, 180.0), 2.0, 600.0, "FINISH")
+    return [cl(i, arc, depth, line, feed, op, file)
+            for i, (line, (arc, depth, feed, op)) in enumerate(zip((10, 11, 13, 14), (slot, slot, finish, finish)))]
 
 
 def margins(maps: list[EngagementMap], grid, rpm: np.ndarray) -> np.ndarray:

@@ -27,7 +27,7 @@ def write_results(out: Path) -> list[EngagementMap]:
     """Three 2 mm CLs in 0.5 mm slices (a slot, half and quarter immersion) at two recorded speeds, the
     tool's full record and the engine's slice height 0.5 mm."""
     def cl(i: int, arc: tuple[float, float]) -> EngagementMap:
-        sl = tuple(SliceEngagement(0.25 + 0.5 * k, -2.0 + 0.25 + 0.5 * k, 5.0, (AngleInterval(*arc),)) for k in range(4))
+        sl = tuple(SliceEngagement(0.25 + 0.5 * k, -1.75 + 0.5 * k, 5.0, (AngleInterval(*arc),)) for k in range(4))
         return EngagementMap(i, (i + 1.0, 0, -2.0), (float(i), 0, -2.0), "T1", SpindleDirection.CW, 0.0,
                              CLStatus.ENGAGED, source=SourceLocation("p.nc", 10 + i), feed=800.0, operation="op",
                              slices=sl, axial_range=(0.0, 2.0))
