@@ -32,9 +32,8 @@ import typer
 from typer.testing import CliRunner
 
 from fusioncut.analysis.feed import FeedLimit, advise_feeds
-from fusioncut.analysis.forces import (
-    compute_cl_forces, engagement_maps_from_results, forces_from_results, forces_table,
-)
+from fusioncut.analysis.forces import compute_cl_forces, forces_from_results, forces_table
+from fusioncut.analysis.result_maps import engagement_maps_from_results
 from fusioncut.analysis.materials import AL7075_T6_CARBIDE as K
 from fusioncut.cli import forces as forces_cli
 from fusioncut.engines.base import EngineOptions
