@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from fusioncut.cli._errors import friendly_errors
+from fusioncut.extras import require
 
 
 def register(app: typer.Typer) -> None:
@@ -24,6 +25,7 @@ def register(app: typer.Typer) -> None:
         log_level: str = typer.Option("info", help="service log level"),
     ) -> None:
         """Run the FusionCut service: HTTP API under /api, browser front end at /."""
+        require("service", "fusioncut serve")
         import uvicorn
 
         from fusioncut.service.app import create_app

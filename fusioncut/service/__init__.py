@@ -9,9 +9,13 @@ folder per job under its data folder. Modules, from the bottom up:
 * :mod:`~fusioncut.service.files` — safe file names and the downloadable files of a job;
 * :mod:`~fusioncut.service.worker` — what a Dask worker runs (progress file, cancel flag);
 * :mod:`~fusioncut.service.executor` — the Dask client (embedded LocalCluster or external scheduler);
+* :mod:`~fusioncut.service.portable` — the job's files named as the user named them, not by server path;
 * :mod:`~fusioncut.service.submit` — parsing and checking submissions before they are queued;
+* :mod:`~fusioncut.service.scene_cache` — the workpiece after a CL, replayed on a worker and cached;
 * :mod:`~fusioncut.service.core` — job life cycle, restart recovery, the monitor thread;
-* :mod:`~fusioncut.service.app` — the FastAPI application and the front end.
+* :mod:`~fusioncut.service.routes` — the HTTP API in routers by concern (jobs, events, results,
+  scenes, front end) and :mod:`~fusioncut.service.body_limit`, the request body limit;
+* :mod:`~fusioncut.service.app` — the FastAPI application: the routers assembled.
 
 The service never imports OpenCASCADE itself; only the runner it calls does, in the workers (and,
 to check toolpath files with the project's readers, the reader modules).

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fusioncut.errors import InputError
+from fusioncut.errors import FusionCutError, InputError
 from fusioncut.service.executor import LIVE_TASK_STATES, Executor
 from fusioncut.service.files import CANCEL_FILE, RESULTS_DIR, SUSPEND_FILE
 from fusioncut.service.settings import Settings, load_keys
@@ -40,8 +40,8 @@ def _task_running(fut: Any) -> bool:
         return False
 
 
-class ClusterUnavailable(Exception):
-    """The job could not be handed to the Dask cluster."""
+class ClusterUnavailable(FusionCutError):
+    """The job could not be handed to the Dask cluster (the API answers 503 with the message)."""
 
 
 @dataclass(frozen=True)

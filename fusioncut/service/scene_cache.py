@@ -40,6 +40,7 @@ from typing import Any
 
 from fusioncut.errors import FusionCutError
 from fusioncut.service.files import INPUT_DIR, JOB_FILE
+from fusioncut.service.portable import job_folders, portable_text
 
 SCENES_DIR = "scenes"  # in the job folder, beside input/ and results/: a cache, not a result file
 STATES_DIR = "states"
@@ -53,7 +54,8 @@ COARSENINGS = 5  # deflection doubled at most this often: x32
 
 
 class SceneSuperseded(Exception):
-    """A newer CL of the same job was asked for: this replay is no longer wanted."""
+    """A newer CL of the same job was asked for: this replay is no longer wanted. A signal, not an
+    error: :func:`build_scene` answers it with ``{"state": "superseded"}``, so no user sees it."""
 
 
 def scene_name(cl: int) -> str:
@@ -109,18 +111,14 @@ def _triangles(scene: Any) -> int:
     return sum(len(m.triangles) for m in (scene.ipw, scene.contact, scene.tool))
 
 
-def _portable(text: str, folder: Path) -> str:
-    """``text`` with the job's folders as the user knows them: input files by their own names."""
-    return text.replace(f"{folder / INPUT_DIR}{os.sep}", "").replace(str(folder), ".")
-
-
 def _portable_info(info: dict[str, Any], folder: Path) -> None:
     """The CL info the GLB carries (its ``extras``) without server paths: the source ``file:line``, the
     reason of a failed CL and the warnings name files the way the user named them."""
+    folders = job_folders(folder)
     for key in ("source", "reason"):
         if isinstance(info.get(key), str):
-            info[key] = _portable(info[key], folder)
-    info["warnings"] = [_portable(str(w), folder) for w in info.get("warnings", [])]
+            info[key] = portable_text(info[key], *folders)
+    info["warnings"] = [portable_text(str(w), *folders) for w in info.get("warnings", [])]
 
 
 def build_scene(job_dir: str, cl: int, max_triangles: int = DEFAULT_MAX_TRIANGLES) -> dict[str, Any]:
@@ -140,7 +138,7 @@ def build_scene(job_dir: str, cl: int, max_triangles: int = DEFAULT_MAX_TRIANGLE
     except SceneSuperseded:
         return {"state": "superseded", "cl": cl, "seconds": time.perf_counter() - t0}
     except FusionCutError as exc:
-        return {"state": "failed", "cl": cl, "message": _portable(str(exc), folder)}
+        return {"state": "failed", "cl": cl, "message": portable_text(str(exc), *job_folders(folder))}
 
 
 def _build(folder: Path, scenes: Path, out: Path, cl: int, max_triangles: int, t0: float) -> dict[str, Any]:

@@ -22,6 +22,7 @@ from fusioncut.engines.sizing import Budget
 from fusioncut.errors import FusionCutError, InputError
 from fusioncut.io.job import Job, OptionField, engine_option_fields
 from fusioncut.service.files import INPUT_DIR, JOB_FILE, check_name
+from fusioncut.service.portable import portable_text
 
 STOCK_SUFFIXES = (".step", ".stp", ".brep")
 SCENE_FILE = "scene.json"  # stock outline for the 3D view, computed while checking the job
@@ -153,6 +154,8 @@ def write_text_files(files: dict[str, str], folder: Path) -> dict[str, Path]:
     out = {}
     for name, text in files.items():
         safe = _checked_name(name, "files")
+        if safe in out:
+            raise SubmissionError(422, f"files: two files named {safe!r}")
         p = folder / safe
         p.write_text(text, encoding="utf-8")
         out[safe] = p
@@ -209,12 +212,13 @@ def build_job_from_form(job_text: str | None, uploads: dict[str, list[str]], for
         raise SubmissionError(422, f"job: not accepted: {_TOO_DEEP}") from None
 
 
-def _relative(message: str, folder: Path) -> str:
-    return message.replace(f"{folder}/", "").replace(str(folder), ".")
-
-
 def check_job(job: Job, folder: Path, budget: Budget) -> Checked:
-    """Check ``job`` against the files in ``folder`` (see the module doc); raises :class:`SubmissionError`."""
+    """Check ``job`` against the files in ``folder`` (see the module doc); raises :class:`SubmissionError`.
+
+    The checked job names its files in NFC, the form they were stored under (:func:`check_name`), so
+    that a job typed on one system and its files uploaded from another (macOS names files in NFD)
+    agree on every name."""
+    job = _nfc_names(job)
     present = {p.name for p in folder.iterdir() if p.is_file()}
     named: list[tuple[str, str]] = [(f"toolpaths[{k}]", n) for k, n in enumerate(job.toolpaths)]
     if job.tool_library:
@@ -222,7 +226,6 @@ def check_job(job: Job, folder: Path, budget: Budget) -> Checked:
     if job.stock.kind == "file":
         named.append(("stock.path", job.stock.path or ""))
     for where, name in named:
-        _checked_name(name, f"job.{where}")
         if name not in present:
             raise SubmissionError(422, f"job.{where}: file {name!r} was not uploaded")
     if job.stock.kind == "file" and not (job.stock.path or "").lower().endswith(STOCK_SUFFIXES):
@@ -231,9 +234,20 @@ def check_job(job: Job, folder: Path, budget: Budget) -> Checked:
     try:
         return _read_inputs(job, folder, budget)
     except FusionCutError as exc:
-        raise SubmissionError(422, _relative(str(exc), folder)) from None
+        raise SubmissionError(422, portable_text(str(exc), folder)) from None
     except (OSError, ValueError) as exc:
-        raise SubmissionError(422, _relative(f"{type(exc).__name__}: {exc}", folder)) from None
+        raise SubmissionError(422, portable_text(f"{type(exc).__name__}: {exc}", folder)) from None
+
+
+def _nfc_names(job: Job) -> Job:
+    """``job`` with the file names it gives checked (:func:`check_name`) and in their NFC form."""
+    update: dict[str, Any] = {
+        "toolpaths": [_checked_name(n, f"job.toolpaths[{k}]") for k, n in enumerate(job.toolpaths)]}
+    if job.tool_library:
+        update["tool_library"] = _checked_name(job.tool_library, "job.tool_library")
+    if job.stock.kind == "file":
+        update["stock"] = job.stock.model_copy(update={"path": _checked_name(job.stock.path or "", "job.stock.path")})
+    return job.model_copy(update=update)
 
 
 def _read_inputs(job: Job, folder: Path, budget: Budget) -> Checked:

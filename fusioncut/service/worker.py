@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 from fusioncut.errors import FusionCutError
 from fusioncut.service.files import CANCEL_FILE, INPUT_DIR, JOB_FILE, PROGRESS_FILE, RESULTS_DIR, SUSPEND_FILE
+from fusioncut.service.portable import job_folders, portable, portable_text
 
 if TYPE_CHECKING:
     from fusioncut.io.job import Job
@@ -138,28 +139,11 @@ class _ThreadFilter(logging.Filter):
         return record.thread == self.ident
 
 
-def _relative(message: str, *folders: Path) -> str:
-    """Error messages name files relative to the job's input folder: server paths are not the user's."""
-    for f in folders:
-        message = message.replace(f"{f}{os.sep}", "").replace(str(f), ".")
-    return message
-
-
-def portable(results: Any) -> Any:
-    """Results with source files named as the user named them: the runner records the path it read,
-    which on the service is a server folder the user has no business seeing (and every input of a job
-    is in one folder, so the names stay unique)."""
-    cl = results.cl
-    if len(cl):
-        cl["file"] = cl["file"].map(lambda s: Path(str(s)).name).astype(cl["file"].dtype)
-    return results
-
-
 def _make_plots(results_dir: Path) -> None:
     from fusioncut.io.results import load_results
     from fusioncut.viz import plots
 
-    results = portable(load_results(results_dir))
+    results = portable(load_results(results_dir), results_dir.parent)
     if not len(results.cl):
         return
     for name, fn in PLOTS.items():
@@ -220,13 +204,13 @@ def execute_job(job_dir: str, attempt: int = 1, progress_interval_s: float = 0.2
             job = single_process(Job.model_validate_json((inputs / JOB_FILE).read_text(encoding="utf-8")))
             result = run_job(job, inputs, results_dir, on_cl=reporter, resume=True, on_start=reporter.on_start)
         except FusionCutError as exc:
-            message = _relative(str(exc), inputs, results_dir)
+            message = portable_text(str(exc), *job_folders(folder))
             log.error("%s", message)
             reporter.write("failed", message=message)
             return {"state": "failed", "message": message, "done": reporter.done, "total": reporter.total}
         except Exception as exc:  # noqa: BLE001 - reported as the job's failure, not the worker's
             log.exception("job failed")
-            message = _relative(f"internal error: {type(exc).__name__}: {exc}", inputs, results_dir)
+            message = portable_text(f"internal error: {type(exc).__name__}: {exc}", *job_folders(folder))
             reporter.write("failed", message=message)
             return {"state": "failed", "message": message, "done": reporter.done, "total": reporter.total}
         if result.interrupted and not reporter.cancel_path.exists():

@@ -249,7 +249,7 @@ class _Cluster:
 def test_one_replay_per_job_the_latest_cl_wins(tmp_path):
     from types import SimpleNamespace
 
-    from fusioncut.service.scene_route import SCENE_PRIORITY, SceneRoutes
+    from fusioncut.service.routes.scenes import SCENE_PRIORITY, SceneRoutes
 
     cluster = _Cluster(tmp_path)
     routes, rec = SceneRoutes(cluster), SimpleNamespace(id="j1")

@@ -1,6 +1,7 @@
-"""``GET /api/jobs/{id}/scene?cl=N``: the 3D scene after CL N of a job, and ``GET .../scene.glb?cl=N``.
+"""The 3D view: ``GET /api/jobs/{id}/scene`` (the stock, the final workpiece's mesh and every CL
+point), ``GET .../scene?cl=N`` (the scene after CL N) and ``GET .../scene.glb?cl=N``.
 
-The answer describes the workpiece *after* CL N, the tool at N and its contact: the tool and the
+The answer with ``?cl=N`` describes the workpiece *after* CL N, the tool at N and its contact: the tool and the
 CL's contact (its row of the ``cl`` table and its engaged arcs) come from the results at once; the
 workpiece's mesh (a GLB with the nodes of :mod:`fusioncut.viz.scene`: ``ipw``, ``contact_faces``,
 ``tool``, entry/exit lines and engaged arcs, under ``machine_frame``) is built by a replay of the
@@ -18,20 +19,26 @@ job's own length and starts from the engine states earlier replays saved (see
 from __future__ import annotations
 
 import itertools
+import json
 import logging
 import threading
 from collections import OrderedDict
 from typing import Any, Literal
 
-from fastapi import FastAPI, HTTPException, Query
+from fastapi import APIRouter, Depends, HTTPException, Query, Request
 from fastapi.responses import FileResponse, JSONResponse
 from pydantic import BaseModel, Field
 
 from fusioncut.errors import FusionCutError
-from fusioncut.service.models import json_safe
-from fusioncut.service.scene_cache import SCENES_DIR, DEFAULT_MAX_TRIANGLES, build_scene, scene_name, want_name
+from fusioncut.service.files import result_files
+from fusioncut.service.models import Scene, json_safe
+from fusioncut.service.routes.access import PROBLEMS, Api, api, owner
+from fusioncut.service.scene_cache import DEFAULT_MAX_TRIANGLES, SCENES_DIR, build_scene, scene_name, want_name
+from fusioncut.service.submit import SCENE_FILE
 
 log = logging.getLogger("fusioncut.service")
+
+router = APIRouter(tags=["results"])
 
 SCENE_PRIORITY = 10  # above the jobs' default 0: a scene waits for a free worker, not for the queue
 GLB_MEDIA_TYPE = "model/gltf-binary"
@@ -167,14 +174,39 @@ class SceneRoutes:
             raise HTTPException(404, f"the scene of CL {cl} is not built: ask /api/jobs/{rec.id}/scene?cl={cl} first")
         return FileResponse(path, media_type=GLB_MEDIA_TYPE, headers={"Cache-Control": "private, max-age=3600"})
 
-    def register(self, app: FastAPI, owner: Any, lookup: Any, problems: dict) -> None:
-        from fastapi import Depends
 
-        @app.get("/api/jobs/{job_id}/scene.glb", tags=["results"], response_class=FileResponse,
-                 responses={**problems, 200: {"content": {GLB_MEDIA_TYPE: {}},
-                                              "description": "the scene after the CL, glTF binary"}})
-        def scene_glb(job_id: str, cl: int = Query(..., ge=0, description="CL index"),
-                      who: str = Depends(owner)) -> FileResponse:
-            """The scene after CL `cl` as glTF binary, once `/scene?cl=` says `ready` (mm in the
-            `machine_frame` node's children; that node scales to glTF's metres, Y up)."""
-            return self.glb(lookup(job_id, who), cl)
+def scene_routes(request: Request) -> SceneRoutes:
+    return request.app.state.scenes
+
+
+@router.get("/api/jobs/{job_id}/scene.glb", response_class=FileResponse,
+            responses={**PROBLEMS, 200: {"content": {GLB_MEDIA_TYPE: {}},
+                                         "description": "the scene after the CL, glTF binary"}})
+def scene_glb(job_id: str, cl: int = Query(..., ge=0, description="CL index"), who: str = Depends(owner),
+              a: Api = Depends(api), scenes: SceneRoutes = Depends(scene_routes)) -> FileResponse:
+    """The scene after CL `cl` as glTF binary, once `/scene?cl=` says `ready` (mm in the
+    `machine_frame` node's children; that node scales to glTF's metres, Y up)."""
+    return scenes.glb(a.job(job_id, who), cl)
+
+
+@router.get("/api/jobs/{job_id}/scene", response_model=Scene | SceneAtCl,
+            responses={**PROBLEMS, **SCENE_RESPONSES})
+def scene(job_id: str, cl: int | None = CL_QUERY, who: str = Depends(owner), a: Api = Depends(api),
+          scenes: SceneRoutes = Depends(scene_routes)) -> Any:
+    """Data for the 3D view: stock outline, IPW mesh file (if any), tools, CL points; with `?cl=N`
+    the workpiece after CL N (a GLB, replayed on a worker and cached), the tool at N and its contact."""
+    rec = a.job(job_id, who)
+    res = a.results(rec)
+    if cl is not None:
+        return scenes.at_cl(rec, res, cl)
+    stock = res.metadata.get("stock") if isinstance(res.metadata.get("stock"), dict) else None
+    if stock is None:
+        try:
+            stock = json.loads((a.service.job_dir(rec) / SCENE_FILE).read_text(encoding="utf-8")).get("stock")
+        except (OSError, ValueError):
+            stock = None
+    names = {f.name for f in result_files(a.service.results_dir(rec))}
+    cols = {c: [json_safe(v) for v in res.cl[c].astype(object).tolist()]
+            for c in ("cl", "x", "y", "z", "tool", "status", "operation")}
+    return Scene(stock=stock, ipw="ipw.stl" if "ipw.stl" in names else None,
+                 tools=res.metadata.get("tools", {}), cls=cols)
