@@ -336,19 +336,27 @@ def test_whole_program_forces_and_advice(tmp_path, cli_app):
     assert [(m.start, m.end) for m in new_tp.moves] == [(m.start, m.end) for m in full.moves]
 
 
-def test_cli_forces_without_program_uses_metadata_and_rpm(run, cli_app, tmp_path):
+def test_cli_forces_need_no_program(run, cli_app, tmp_path):
+    """``fusioncut forces RESULTS`` alone takes the recorded speeds, tools and slice height: the table
+    is the one ``--program`` gives; an older folder without speeds asks for ``--rpm`` (exit 2, no
+    traceback); ``--flutes`` overrides the recorded tool."""
     _, maps, shared = run
     out = _copy(shared, tmp_path)
     r = CliRunner().invoke(cli_app, ["forces", str(out), "--no-plot"])
-    assert r.exit_code == 2 and "--rpm" in r.output and "Traceback" not in r.output
+    assert r.exit_code == 0, r.output
+    alone = pd.read_csv(out / "forces.csv")
     r = CliRunner().invoke(cli_app, ["forces", str(out), "--program", str(PROGRAM), "--no-plot"])
     assert r.exit_code == 0, r.output
     with_program = pd.read_csv(out / "forces.csv")
+    assert alone["resultant_peak_N"].notna().sum() > 50
+    pd.testing.assert_frame_equal(alone, with_program, check_exact=True)
+    old = _as_older_folder(shared, tmp_path / "old")
+    r = CliRunner().invoke(cli_app, ["forces", str(old), "--no-plot"])
+    assert r.exit_code == 2 and "--rpm" in r.output and "Traceback" not in r.output
     r = CliRunner().invoke(cli_app, ["forces", str(out), "--rpm", str(RPM), "--no-plot"])
     assert r.exit_code == 0, r.output
     plain = pd.read_csv(out / "forces.csv")
-    # the program's tool comment says what the metadata says (flat, 2.65 mm; 2 flutes, 30 deg by default)
-    np.testing.assert_allclose(plain["resultant_peak_N"], with_program["resultant_peak_N"], equal_nan=True)
+    np.testing.assert_allclose(plain["resultant_peak_N"], alone["resultant_peak_N"], equal_nan=True)
     r = CliRunner().invoke(cli_app, ["forces", str(out), "--rpm", str(RPM), "--flutes", "4", "--no-plot"])
     assert r.exit_code == 0, r.output
     four = pd.read_csv(out / "forces.csv")
