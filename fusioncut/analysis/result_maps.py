@@ -6,8 +6,8 @@ the engine's band ``[k, k+1) * dz`` clipped to the flute contact). :func:`engage
 turns the rows back into :class:`~fusioncut.model.engagement.EngagementMap` s whose axial contact range
 spans the recorded bands, so :func:`fusioncut.analysis.forces.compute_cl_forces` with the recorded slice
 height (:func:`results_slice_height`) rebuilds the engine's bands exactly. Folders written before the
-slice height and bands were recorded need the slice height given; their bands come from the engine's
-slice rule inverted.
+slice height and bands were recorded take the slice height given (else :func:`infer_slice_height`
+guesses it, for such folders only); their bands come from the engine's slice rule inverted.
 """
 from __future__ import annotations
 
@@ -25,7 +25,8 @@ if TYPE_CHECKING:  # the tables' reader brings pandas; the maps need only what i
 
 
 def infer_slice_height(results: object) -> float:
-    """The engine's slice height (mm) behind a results directory, which the tables do not store.
+    """The engine's slice height (mm) behind a results directory written before it was recorded
+    (:attr:`Results.slice_height` is ``None``); folders that record it are never guessed at.
 
     The engine puts a slice in the middle of the part of its cell ``[k dz, (k+1) dz]`` in contact, so
     with the right ``dz`` the rebuilt axial range of every CL with two or more slices (see
