@@ -34,10 +34,10 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
+from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move, Point
 from fusioncut.model.tools import MillingTool, ProfileArc
 
-Box = tuple[tuple[float, float, float], tuple[float, float, float]]
+Box = tuple[Point, Point]  # (lowest corner, highest corner), mm
 
 NOISE = 1e-9  # mm: heights this close count as equal (see the module docstring)
 _FLAT = 1e-12  # mm: a move whose ends differ less than this in Z is horizontal

@@ -22,16 +22,13 @@ from typing import NamedTuple
 from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.engines.brep.layers import Layer, solid_layers, stack_box, stack_solid, stack_volume
-from fusioncut.engines.brep.occ import bounding_box, count_faces, quarters, solids, volume
+from fusioncut.engines.brep.occ import Vec3, bounding_box, count_faces, quarters, solids, volume
 from fusioncut.engines.brep.sweep import cylinder_tool
-from fusioncut.engines.ceiling import SweepFootprint, tool_radii
+from fusioncut.engines.ceiling import Box, SweepFootprint, tool_radii
 from fusioncut.model.moves import ArcMove, Move
 from fusioncut.model.tools import MillingTool
 
 log = logging.getLogger("fusioncut.engine")
-
-Vec3 = tuple[float, float, float]
-Box = tuple[Vec3, Vec3]
 
 # a solid cell is split into quarters down to cell_size / MAX_SPLIT (20 mm cells: 5 mm)
 MAX_SPLIT = 4

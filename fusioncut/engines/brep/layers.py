@@ -50,10 +50,10 @@ from fusioncut.engines.brep.occ import (
     area, bounding_box, boxes_overlap, compound, edges, faces, fuse_all, intersections, on_old_boundary,
     pieces, split_pieces, unify, volume,
 )
+from fusioncut.engines.ceiling import Box
 from fusioncut.errors import KernelFailure, RegionCutFailure
 
 log = logging.getLogger(__name__)
-Box = tuple[tuple[float, float, float], tuple[float, float, float]]
 Z_SNAP = 1e-7  # mm: a tip this close to a layer's boundary stops on it (no layer thinner than this)
 EDGE_TOLERANCE = 1e-7  # mm: OCCT's tolerance of a new edge (Precision::Confusion)
 

@@ -50,17 +50,16 @@ from OCP.TopAbs import TopAbs_SHELL
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Shape
 
+from fusioncut.engines.base import SweepMethod
 from fusioncut.engines.brep import planar
 from fusioncut.engines.brep.occ import (
-    faces, fuse_all, moved_copy, placement, planar_face, pnt, solids, unify, volume, wire_from_points,
+    Vec3, faces, fuse_all, moved_copy, placement, planar_face, pnt, solids, unify, volume, wire_from_points,
 )
-from fusioncut.engines.base import SweepMethod
 from fusioncut.engines.ceiling import tool_radii
 from fusioncut.errors import KernelFailure, SourceLocation
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
 from fusioncut.model.tools import MillingTool, ProfileArc, ProfileLine, ToolProfile
 
-Vec3 = tuple[float, float, float]
 _EPS = 1e-9
 # mm: a horizontal travel shorter than this counts as none (the tool at the end; a vertical move):
 # the kernel fails to sweep a prism of 1.2e-9 mm, and what such a travel adds is below its tolerance
