@@ -6,9 +6,10 @@
   are the column tables of :mod:`fusioncut.io.result_columns`, row for row.
 * The README holds no date and no time of day. Measurements with their dates belong in
   ``docs/benchmark.md``.
-* Every relative link points to a file in the repository; every repository path the README names
-  (``fusioncut/...``, ``docs/...``) exists, and every dotted name (``fusioncut.io.results.load_results``)
-  imports.
+* Every relative link points to a file in the repository and every repository path named
+  (``fusioncut/...``, ``docs/...``) exists, in the README and in the notes that took its evidence
+  (``docs/benchmark.md``, ``docs/decisions/``); every dotted name the README gives
+  (``fusioncut.io.results.load_results``) imports.
 """
 from __future__ import annotations
 
@@ -78,19 +79,30 @@ def test_readme_holds_no_date_or_time_of_day():
     assert not dates and not times, f"dates {dates}, times of day {times}: measurements go to docs/benchmark.md"
 
 
-def test_readme_links_point_to_files_in_the_repository():
-    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", TEXT)
+# the README and the notes that took its evidence: links resolve from the file's folder, repository
+# paths (fusioncut/..., docs/...) from the repository root
+DOCUMENTS = [README, ROOT / "docs" / "benchmark.md",
+             *(ROOT / "docs" / "decisions" / f"{name}.md"
+               for name in ("swept-volumes-and-booleans", "layers-and-planar-cuts", "cells-bounds-and-merges"))]
+
+
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_links_point_to_files_in_the_repository(document):
+    text = document.read_text(encoding="utf-8")
+    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text)
     local = [link for link in links if not re.match(r"[a-z]+://", link)]
     assert local, "no relative link found: the pattern is wrong"
-    missing = [link for link in local if not (ROOT / link).exists()]
-    assert not missing, f"README.md links to missing files: {missing}"
+    missing = [link for link in local if not (document.parent / link).exists()]
+    assert not missing, f"{document.name} links to missing files: {missing}"
 
 
-def test_readme_paths_exist():
-    paths = set(re.findall(r"(?<![\w/.-])((?:fusioncut|tests|docs|benchmarks|frontend|\.ci)/[\w./-]*\w)", TEXT))
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_repository_paths_exist(document):
+    text = document.read_text(encoding="utf-8")
+    paths = set(re.findall(r"(?<![\w/.-])((?:fusioncut|tests|docs|benchmarks|frontend|\.ci)/[\w./-]*\w)", text))
     assert paths, "no repository path found: the pattern is wrong"
     missing = sorted(p for p in paths if not (ROOT / p).exists())
-    assert not missing, f"README.md names paths that do not exist: {missing}"
+    assert not missing, f"{document.name} names paths that do not exist: {missing}"
 
 
 def _resolve(dotted: str) -> object:
