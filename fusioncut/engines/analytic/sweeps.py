@@ -14,11 +14,11 @@ table. With the lower profile ``f`` (radius ``R``), the sweep removes every poin
 
 and ``L = inf`` outside its footprint. On a line ``z(t) + f(d(t))`` is convex in ``t`` (``d`` is
 convex, ``f`` convex and non-decreasing), so its minimum is found by bisection on the sign of its
-derivative to ~1e-16 in ``t`` (closed forms where the derivative keeps a sign: a flat end mill,
-every level move's ends). On an arc the points within ``R`` form windows of angle around the
+derivative to ~1e-16 in ``t`` (closed forms where the derivative keeps a sign, a flat end mill's
+ramps, and on level moves: there the lowest tool is the one nearest ``p``). On an arc the points within ``R`` form windows of angle around the
 direction of ``p``; each window is sampled at :data:`ARC_STEP` rad at most and every sampled local
 minimum is refined by golden section to ~1e-14 in ``t``: minima closer together than the step
-could merge (a level arc has one per window: there ``f(d)`` grows with the angle off ``p``).
+could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``.
 
 ``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
 ``R``, so that a wall an earlier sweep left exactly where the tool stands now (a retraced pass) is
@@ -104,6 +104,8 @@ def line_lower(S, P, R, px, py, eps):
     lo, hi = max(0.0, b - s), min(1.0, b + s)
     if lo > hi:
         return math.inf
+    if S[6] == S[3]:  # level: the tool nearest p is lowest there (f grows outward)
+        return _line_value(S, P, R, px, py, min(max(b, lo), hi))
     if _line_slope(S, P, R, px, py, lo) >= 0.0:
         return _line_value(S, P, R, px, py, lo)
     if _line_slope(S, P, R, px, py, hi) <= 0.0:
@@ -186,6 +188,16 @@ def arc_lower(S, P, R, px, py, eps):
     b0 = S[10] - psi
     b1 = b0 + sw
     lo, hi = min(b0, b1), max(b0, b1)
+    if S[6] == S[3]:  # level: lowest where the arc passes nearest p, the direction of p or an end
+        k = math.ceil(lo / (2.0 * math.pi))
+        if 2.0 * math.pi * k <= hi:
+            d = abs(Q - rho)
+        else:
+            c = max(math.cos(b0), math.cos(b1))
+            d = math.sqrt(max(rho * rho + Q * Q - 2.0 * rho * Q * c, 0.0))
+        if d > Re:
+            return math.inf
+        return S[3] + profile_height(P, d if d < R else R)
     best = math.inf
     k0 = int(math.ceil((lo - w) / (2.0 * math.pi)))
     k1 = int(math.floor((hi + w) / (2.0 * math.pi)))

@@ -1,0 +1,245 @@
+"""Engaged arcs of the tool at the end of a CL, slice by slice, without Booleans.
+
+Machine frame, mm, radians. The tool stands at the end ``e`` of the CL's sweep ``S``; its slice at
+``zs`` mm above the tip is the circle of radius ``r = rho(zs)`` about the axis. The point ``q(theta) =
+e + r (cos theta, sin theta)`` at height ``e_z + zs`` is **engaged** when both hold:
+
+* **material**: it lies strictly inside the box stock and above no earlier sweep's
+  lower surface (:func:`fusioncut.engines.analytic.sweeps.sweep_lower` with the footprint widened
+  by ``eps``, lower surface + ``eps`` <= its height: cut). So a wall an earlier pass left exactly
+  where the tool now stands (a deeper pass retracing it) holds no material: no interval, as in the
+  B-Rep engine's zero-thickness rule.
+* **front**: it lies on the boundary of the CL's own sweep, not strictly inside the tool at an
+  earlier position of the same CL. With ``phi(t) = |q - c(t)| - rho(q_z - z(t))`` (< 0: strictly
+  inside the tool at ``t``), ``phi(1) = 0``; on a line ``phi`` is convex, so the point is on the
+  front iff ``phi'(1) <= 0``, that is ``u . v_xy >= rho'(zs) v_z`` with ``u`` the unit radial
+  direction and ``v = c'(1)``: a closed form (half the circle on a level move, all of it on a plunge,
+  more than half going down a ramp). On an arc the same local condition holds and the least ``phi``
+  over the arc must not be below ``-eps`` (the tool at an earlier turn of a helix or circle).
+
+Interval ends: the predicate is evaluated at :data:`N_SCAN` even angles plus the closed-form front
+limits, then every change between neighbours is bisected to :data:`ANGLE_TOL` rad. Engaged arcs
+narrower than the scan step (0.5 degrees) that hold no front limit can be missed. Where the circle
+only touches a boundary (tangent to a stock face or an earlier wall), rounding leaves a gap of
+~1e-8 rad: gaps under :data:`GAP_TOL` are closed, as the B-Rep engine's one contact face has none.
+
+The contact's height range needs the highest (and lowest) height where any point of the slice is
+engaged; near it the engaged arc shrinks to a point, which a scan would miss. So
+:func:`slice_touches` maximises the **material margin** (the least of the distances to the stock's
+faces and of the earlier sweeps' lower surfaces above the point, mm) over the front arc, sampled
+and refined by golden section: the slice touches material where that maximum is positive.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fusioncut.engines.analytic.sweeps import arc_depth, end_velocity, sweep_lower
+
+N_SCAN = 720
+ANGLE_TOL = 1e-10  # rad
+GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
+TWO_PI = 2.0 * math.pi
+_GOLDEN = 0.6180339887498949
+
+
+@njit(cache=True)
+def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
+    """True where the stock held material at (px, py, pz) before the CL (earlier sweeps ``C``, their
+    footprint boxes ``CB``; tool tables ``PP``, ``NPC``, ``RR``; ``stock`` = x0, y0, z0, x1, y1, z1)."""
+    if not (stock[0] < px < stock[3] and stock[1] < py < stock[4] and stock[2] < pz < stock[5]):
+        return False
+    for j in range(C.shape[0]):
+        if px < CB[j, 0] - eps or px > CB[j, 2] + eps or py < CB[j, 1] - eps or py > CB[j, 3] + eps:
+            continue
+        k = int(C[j, 12])
+        if sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) <= pz + eps:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps):
+    """The front condition at machine angle ``theta`` (module docstring); ``lift = rho'(zs) v_z``."""
+    g = math.cos(theta) * vx + math.sin(theta) * vy - lift
+    if g < -1e-12 * (abs(vx) + abs(vy) + abs(lift)):
+        return False
+    if S[0] == 0.0:
+        return True
+    return arc_depth(S, P, R, ex + r * math.cos(theta), ey + r * math.sin(theta), pz) >= -eps
+
+
+@njit(cache=True)
+def _engaged(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps):
+    if not material_at(ex + r * math.cos(theta), ey + r * math.sin(theta), pz, C, CB, PP, NPC, RR, stock, eps):
+        return False
+    return _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)
+
+
+@njit(cache=True)
+def front_limits(vx, vy, lift):
+    """Machine angles (rad) where the front condition changes: cos(theta - psi) |v_xy| = lift."""
+    out = np.empty(2)
+    h = math.sqrt(vx * vx + vy * vy)
+    if h <= 0.0 or abs(lift) >= h:
+        return out[:0]
+    psi = math.atan2(vy, vx)
+    w = math.acos(lift / h)
+    out[0] = (psi - w) % TWO_PI
+    out[1] = (psi + w) % TWO_PI
+    return out
+
+
+@njit(cache=True)
+def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, n_scan):
+    """Engaged machine arcs (start, span) in rad, counter-clockwise, of the slice ``zs`` mm above the
+    tip (radius ``r``, ``drho = rho'(zs)``) of the tool at the end of sweep ``S``. An (n, 2) array;
+    one row (0, 2 pi) when engaged all round."""
+    ex, ey, ez = S[4], S[5], S[6]
+    vx, vy, vz = end_velocity(S)
+    lift = 0.0 if vz == 0.0 else drho * vz
+    pz = ez + zs
+    lim = front_limits(vx, vy, lift)
+    n = n_scan + lim.shape[0]
+    th = np.empty(n)
+    for i in range(n_scan):
+        th[i] = TWO_PI * i / n_scan
+    for i in range(lim.shape[0]):
+        th[n_scan + i] = lim[i]
+    th = np.sort(th)
+    on = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        on[i] = _engaged(th[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+    out = np.empty((n, 2))
+    if on.all():
+        out[0, 0], out[0, 1] = 0.0, TWO_PI
+        return out[:1]
+    if not on.any():
+        return out[:0]
+    # the changes between neighbours (cyclic), each bisected: rises start an arc, falls end one
+    starts = np.empty(n)
+    ends = np.empty(n)
+    ns = 0
+    ne = 0
+    for i in range(n):
+        j = (i + 1) % n
+        if on[i] == on[j]:
+            continue
+        a = th[i]
+        b = th[j] if j > i else th[j] + TWO_PI
+        for _ in range(60):
+            if b - a <= ANGLE_TOL:
+                break
+            m = 0.5 * (a + b)
+            if _engaged(m % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps) == on[i]:
+                a = m
+            else:
+                b = m
+        edge = (0.5 * (a + b)) % TWO_PI
+        if on[i]:
+            ends[ne] = edge
+            ne += 1
+        else:
+            starts[ns] = edge
+            ns += 1
+    # a start within GAP_TOL after an end closes a gap of a touching point (the tool's circle tangent
+    # to a face of the stock or to an earlier sweep's wall): the arcs are one
+    keep_s = np.ones(ns, dtype=np.bool_)
+    keep_e = np.ones(ne, dtype=np.bool_)
+    for i in range(ns):
+        for j in range(ne):
+            if keep_e[j] and (starts[i] - ends[j]) % TWO_PI < GAP_TOL:
+                keep_s[i] = False
+                keep_e[j] = False
+                break
+    if not keep_s.any():
+        out[0, 0], out[0, 1] = 0.0, TWO_PI
+        return out[:1]
+    # pair each start with the first end after it (counter-clockwise)
+    k = 0
+    for i in range(ns):
+        if not keep_s[i]:
+            continue
+        best = 10.0
+        for j in range(ne):
+            span = (ends[j] - starts[i]) % TWO_PI
+            if keep_e[j] and span < best:
+                best = span
+        out[k, 0], out[k, 1] = starts[i], best
+        k += 1
+    return out[:k]
+
+
+@njit(cache=True)
+def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
+    """How deep (mm) the point lies in the material before the CL: the least distance to a stock
+    face and height below an earlier sweep's lower surface (less ``eps``); <= 0 where there is none."""
+    m = min(px - stock[0], stock[3] - px, py - stock[1], stock[4] - py, pz - stock[2], stock[5] - pz)
+    for j in range(C.shape[0]):
+        if m <= 0.0:
+            return m
+        if px < CB[j, 0] - eps or px > CB[j, 2] + eps or py < CB[j, 1] - eps or py > CB[j, 3] + eps:
+            continue
+        k = int(C[j, 12])
+        h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) - eps - pz
+        if h < m:
+            m = h
+    return m
+
+
+@njit(cache=True)
+def _margin_at(t, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps):
+    return material_margin(ex + r * math.cos(t), ey + r * math.sin(t), pz, C, CB, PP, NPC, RR, stock, eps)
+
+
+@njit(cache=True)
+def slice_touches(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, n_scan):
+    """Whether the slice ``zs`` mm above the tip holds an engaged point: the material margin's
+    maximum over the front arc (sampled at ``n_scan`` angles a turn, local maxima refined by golden
+    section to ~1e-12 rad) is positive, and for an arc the point is on its sweep's front."""
+    ex, ey, ez = S[4], S[5], S[6]
+    vx, vy, vz = end_velocity(S)
+    lift = 0.0 if vz == 0.0 else drho * vz
+    pz = ez + zs
+    lim = front_limits(vx, vy, lift)
+    h = math.sqrt(vx * vx + vy * vy)
+    if lim.shape[0] == 2:
+        t0 = lim[0]
+        t1 = lim[1] if lim[1] > lim[0] else lim[1] + TWO_PI
+    elif lift <= -h:
+        t0, t1 = 0.0, TWO_PI  # all round: a plunge, or steeply down
+    else:
+        return False  # no front: the tool moves up faster than its flank rises
+    n = max(8, int(math.ceil((t1 - t0) / TWO_PI * n_scan)))
+    ts = np.empty(n + 1)
+    ms = np.empty(n + 1)
+    for i in range(n + 1):
+        ts[i] = t0 + (t1 - t0) * i / n
+        ms[i] = _margin_at(ts[i], ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+    for i in range(n + 1):
+        if ms[i] > 0.0 and (S[0] == 0.0 or _front_at(ts[i] % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)):
+            return True
+    for i in range(n + 1):
+        if (i > 0 and ms[i] < ms[i - 1]) or (i < n and ms[i] < ms[i + 1]):
+            continue
+        a = ts[max(i - 1, 0)]
+        b = ts[min(i + 1, n)]
+        c = b - _GOLDEN * (b - a)
+        d = a + _GOLDEN * (b - a)
+        fc = _margin_at(c, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+        fd = _margin_at(d, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+        for _ in range(48):
+            if fc >= fd:
+                b, d, fd = d, c, fc
+                c = b - _GOLDEN * (b - a)
+                fc = _margin_at(c, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+            else:
+                a, c, fc = c, d, fd
+                d = a + _GOLDEN * (b - a)
+                fd = _margin_at(d, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+        t = c if fc >= fd else d
+        if max(fc, fd) > 0.0 and (S[0] == 0.0 or _front_at(t % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)):
+            return True
+    return False

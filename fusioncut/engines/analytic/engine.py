@@ -1,0 +1,247 @@
+"""The analytic engagement engine: exact 3-axis engagement from the toolpath, no Booleans (issue 26).
+
+For tools of revolution without undercut moved in 3 axes over a box stock, the in-process
+workpiece before CL k is ``stock ∩ {z <= h_k(x, y)}`` with ``h_k`` the lowest lower surface of
+the sweeps of CLs 0..k-1 (:mod:`.sweeps`; the tool extends straight up, as a 3-axis tool's shank
+and holder do). Nothing is built or kept but the sweeps themselves (one row each, :mod:`.index`):
+
+* the **removed volume** of CL k integrates ``min(h_k, top) - max(L_k, bottom)`` over its
+  footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint;
+* its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
+  where material was before the CL and the tool's surface is on the sweep's front, their ends
+  bisected to 1e-10 rad; the slices are laid out and converted to immersion angles as the B-Rep
+  engine does (:func:`fusioncut.engines.brep.engine.slice_heights`, ``engagement_map``), so the
+  output is the same :class:`~fusioncut.model.engagement.EngagementMap` per CL;
+* the flute contact's height range (``ap``) is bracketed on heights every quarter slice and at
+  the heights of the stock's top and the earlier sweeps' ends, then bisected to 1e-10 mm.
+
+Since the workpiece before a CL follows from the path alone, :meth:`AnalyticEngine.process` can
+start at any CL: the sweeps before it are indexed, not evaluated.
+
+The CL segments are the B-Rep engine's (:func:`fusioncut.engines.segments.segments_for`), so CL
+indices match; a piece of a ramp or helix is swept along the programmed path itself, not as the
+B-Rep engine's level step. Not yet here: contact areas (reported 0), the shank's contact, per-band
+volumes for the minimum chip thickness (no band is called rubbing), stocks other than a box.
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from fusioncut.engines.analytic.contact import slice_arcs, slice_touches
+from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
+from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
+from fusioncut.engines.analytic.sweeps import arc_row, line_row
+from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
+from fusioncut.engines.base import EngineOptions, SweepMethod
+from fusioncut.engines.cl_maps import CL, CutOutcome, cl_sequence, engagement_map, slice_heights
+from fusioncut.errors import InputError
+from fusioncut.model.engagement import CLStatus, EngagementMap
+from fusioncut.model.moves import ArcMove, ArcPlane, Move, Toolpath
+from fusioncut.model.stock import BoxStock, Stock
+from fusioncut.model.tools import MillingTool
+
+WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts as cut (zero-thickness walls)
+VOLUME_EPS = 1e-12  # mm³: a CL removing less is idle (air, or a rapid through air)
+N_SCAN = 720  # angles per slice scanned before bisection (contact.slice_arcs)
+N_TOUCH = 360  # angles per height scanned for the contact's height range
+Z_TOL = 1e-10  # mm: the contact's height range
+
+
+class UnsupportedStock(InputError):
+    """A stock the analytic engine cannot take (it needs a box)."""
+
+
+@dataclass
+class AnalyticEngine:
+    """Exact Boolean-free engine for 3-axis tools of revolution over a box stock.
+
+    ``bin_size`` (mm): the sweep index's grid (None: twice the first tool's diameter).
+    ``volume_tol`` (mm): the removed volume's integration tolerance per mm² of footprint.
+    """
+
+    options: EngineOptions = field(default_factory=EngineOptions)
+    bin_size: float | None = None
+    volume_tol: float = 1e-10
+    stock: tuple[float, ...] = ()
+    removed_total: float = 0.0
+    _index: SweepIndex | None = field(default=None, init=False, repr=False)
+    _tools: ProfileTable = field(default_factory=ProfileTable, init=False, repr=False)
+
+    def start(self, stock: Stock) -> None:
+        if not isinstance(stock, BoxStock):
+            raise UnsupportedStock(f"the analytic engine needs a box stock, got {type(stock).__name__}")
+        self.stock = (*stock.minimum, *stock.maximum)
+        self.removed_total = 0.0
+        self._index = SweepIndex(self.bin_size) if self.bin_size else None
+        self._tools = ProfileTable()
+
+    @property
+    def stock_volume(self) -> float:
+        s = self.stock
+        return (s[3] - s[0]) * (s[4] - s[1]) * (s[5] - s[2])
+
+    def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
+        self.start(stock)
+        yield from self.process(toolpath, default_tool)
+
+    def process(self, toolpath: Toolpath, default_tool: MillingTool | None = None,
+                start_at: int = 0) -> Iterator[EngagementMap]:
+        """One map per CL segment from CL ``start_at`` on; the sweeps of the CLs before it are only
+        indexed (their removed volume is not counted in ``removed_total``)."""
+        for cl in cl_sequence(toolpath, self.options, default_tool):
+            if cl.index < start_at:
+                profile = lower_profile(cl.tool)
+                self._index_of(profile).add(*sweep_row(cl.move, profile, self._tools.index_of(profile)))
+                continue
+            yield self.step(cl)
+
+    def _index_of(self, profile: LowerProfile) -> SweepIndex:
+        if self._index is None:
+            self._index = SweepIndex(4 * profile.radius)
+        return self._index
+
+    def step(self, cl: CL) -> EngagementMap:
+        """Process one CL segment; ``timings_ms`` holds each stage's wall time and the ``total`` (ms)."""
+        move, tool = cl.move, cl.tool
+        t0 = time.perf_counter()
+        profile = lower_profile(tool)
+        index = self._index_of(profile)
+        row, box, z_low = sweep_row(move, profile, self._tools.index_of(profile))
+        stock = np.array(self.stock)
+        near = index.near((box[0] - WALL_EPS, box[1] - WALL_EPS, box[2] + WALL_EPS, box[3] + WALL_EPS),
+                                z_max=self.stock[5])
+        C, CB = index.rows[near], index.boxes[near]
+        PP, NPC, RR = self._tools.profiles, self._tools.counts, self._tools.radii
+        t1 = time.perf_counter()
+        removed = self._removed(row, profile, C, CB, box)
+        t2 = time.perf_counter()
+        timings = {"index": (t1 - t0) * 1e3, "volume": (t2 - t1) * 1e3}
+        idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR
+        heights: list[tuple[float, bool]] = []
+        arcs: list[list[tuple[float, float]]] = []
+        if removed <= VOLUME_EPS:
+            outcome = CutOutcome(idle, method=SweepMethod.EXACT, timings=timings)
+        else:
+            args = (row, profile.pieces, profile.radius, C, CB, PP, NPC, RR, stock, WALL_EPS)
+            z_range = contact_range(args, tool.flute_length, self.options.slice_height,
+                                    [self.stock[5]] + list(C[:, 3]) + list(C[:, 6]))
+            heights = slice_heights(z_range, tool, self.options.slice_height)
+            for z, active in heights:
+                if not active:
+                    arcs.append([])
+                    continue
+                r = profile_radius(profile.pieces, z)
+                found = slice_arcs(row, profile.pieces, profile.radius, z, r,
+                                   profile_radius_slope(profile.pieces, z), C, CB, PP, NPC, RR, stock, WALL_EPS,
+                                   N_SCAN)
+                arcs.append([(float(a), float(w)) for a, w in found])
+            timings["contact"] = (time.perf_counter() - t2) * 1e3
+            outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
+                                 method=SweepMethod.EXACT, timings=timings, z_range=z_range, band_volumes=None)
+        index.add(row, box, z_low)
+        self.removed_total += removed
+        m = engagement_map(cl, outcome, heights, arcs, self.options.slice_height,
+                           self.options.min_chip_thickness)
+        timings["total"] = (time.perf_counter() - t0) * 1e3
+        return replace(m, timings_ms=tuple(timings.items()))
+
+    def _removed(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
+                 box: tuple[float, float, float, float]) -> float:
+        s = self.stock
+        x0, x1 = max(box[0], s[0]), min(box[2], s[3])
+        y0, y1 = max(box[1], s[1]), min(box[3], s[4])
+        if x0 >= x1 or y0 >= y1:
+            return 0.0
+        tables = self._tools
+        rows = np.vstack([row[None, :], C])
+        radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5])) for r in rows]
+        circles, segments = boundary_curves(rows, radii)
+        xs = x_breaks(circles, segments, x0, x1)
+        return float(removed_volume(xs, y0, y1, circles, segments, row, profile.pieces, profile.radius, C, CB,
+                                    tables.profiles, tables.counts, tables.radii, s[2], s[5], self.volume_tol))
+
+
+def _break_radii(row: np.ndarray, pieces: np.ndarray, levels: tuple[float, float]) -> tuple[float, ...]:
+    """Radii (mm) about a sweep's path where its lower surface jumps or bends: R and the inner piece
+    ends; for a level sweep also where it crosses the heights ``levels`` (the stock's bottom and top),
+    where the removed height bends."""
+    out = [float(d) for d in pieces[:, 2] if d > 0]
+    if row[3] == row[6]:
+        for level in levels:
+            r = profile_radius(pieces, level - row[3])
+            if 0 < r < pieces[-1, 2]:
+                out.append(float(r))
+    return tuple(out)
+
+
+def sweep_row(move: Move, profile: LowerProfile, tool_index: int
+              ) -> tuple[np.ndarray, tuple[float, float, float, float], float]:
+    """(the sweep's row, its footprint box (x0, y0, x1, y1), its lowest tip height) for a CL segment
+    (mm). An XY arc runs on its start's circle (spirals are cut into circular pieces before, see
+    :meth:`fusioncut.model.moves.ArcMove.circular_pieces`), ending at the programmed end's angle."""
+    R = profile.radius
+    z_low = min(move.start[2], move.end[2])
+    if isinstance(move, ArcMove):
+        if move.plane != ArcPlane.XY:
+            raise InputError("the analytic engine sweeps XY arcs only (ZX/YZ arcs come as chords)", move.source)
+        cx, cy = move.center[0], move.center[1]
+        rho = math.hypot(move.start[0] - cx, move.start[1] - cy)
+        a0 = math.atan2(move.start[1] - cy, move.start[0] - cx)
+        sw = move.sweep
+        end = (cx + rho * math.cos(a0 + sw), cy + rho * math.sin(a0 + sw), move.end[2])
+        row = arc_row(move.start, end, (cx, cy), rho, a0, sw, tool_index)
+        lo, hi = move.bounds
+        pad = R + abs(math.hypot(move.end[0] - cx, move.end[1] - cy) - rho) + 1e-9
+        return row, (lo[0] - pad, lo[1] - pad, hi[0] + pad, hi[1] + pad), z_low
+    row = line_row(move.start, move.end, tool_index)
+    (x0, y0, _), (x1, y1, _) = move.start, move.end
+    return row, (min(x0, x1) - R, min(y0, y1) - R, max(x0, x1) + R, max(y0, y1) + R), z_low
+
+
+def contact_range(args: tuple, flute_length: float, dz: float, levels: list[float]) -> tuple[float, float] | None:
+    """The flute contact's height range (mm above the tip) of the tool at the end of ``args``' sweep
+    (``args`` as :func:`.contact.slice_arcs` takes them, less the height, radius and slope), or None.
+
+    Heights every quarter of ``dz`` and just above and below each machine height of ``levels``
+    (the stock's top, the earlier sweeps' ends) are tested; each change between neighbours is
+    bisected to :data:`Z_TOL`."""
+    row, pieces = args[0], args[1]
+    ez = row[6]
+
+    def touches(zs: float) -> bool:
+        r = profile_radius(pieces, zs)
+        if r <= 0:
+            return False
+        return bool(slice_touches(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:], N_TOUCH))
+
+    zs = {min(1e-9, flute_length), flute_length}
+    step = dz / 4
+    zs.update(step * k for k in range(1, math.ceil(flute_length / step)))
+    for level in levels:
+        for z in (level - ez - 1e-7, level - ez + 1e-7):
+            if 0 < z < flute_length:
+                zs.add(z)
+    grid = sorted(zs)
+    on = [touches(z) for z in grid]
+    if not any(on):
+        return None
+
+    def edge(a: float, b: float, on_a: bool) -> float:
+        while b - a > Z_TOL:
+            m = 0.5 * (a + b)
+            if touches(m) == on_a:
+                a = m
+            else:
+                b = m
+        return 0.5 * (a + b)
+
+    first = on.index(True)
+    last = len(on) - 1 - on[::-1].index(True)
+    lo = 0.0 if first == 0 else edge(grid[first - 1], grid[first], False)
+    hi = flute_length if last == len(on) - 1 else edge(grid[last], grid[last + 1], True)
+    return (lo, hi)

@@ -1,0 +1,102 @@
+"""The earlier sweeps of a run, and a uniform grid of bins over XY to find those near a place.
+
+Each sweep (a row of :data:`fusioncut.engines.analytic.sweeps.SWEEP_COLUMNS`) is stored with the
+box of its footprint ``(x_min, y_min, x_max, y_max)`` (mm, the tool-tip path's XY bounds grown by
+the tool's radius ``R``) and the lowest height of its lower surface (the path's lowest tip height,
+mm: every lower profile is >= 0 above the tip). A sweep is registered in every bin its box
+overlaps, so a query for a box meets only the sweeps registered in the bins the box overlaps,
+then keeps those whose own box overlaps it: a point meets only sweeps that can contain it.
+
+Tool lower profiles (:mod:`fusioncut.engines.analytic.profile`) are kept in one padded table
+``profiles[k, :counts[k]]`` with their radii ``radii[k]``, indexed by a sweep's ``tool`` column,
+so that the numba kernels get every sweep's tool in flat arrays.
+"""
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+
+import numpy as np
+
+from fusioncut.engines.analytic.profile import LowerProfile
+from fusioncut.engines.analytic.sweeps import NCOL
+
+
+class ProfileTable:
+    """The lower profiles a run has met, as padded arrays for the kernels."""
+
+    def __init__(self) -> None:
+        self._index: dict[int, int] = {}
+        self._profiles: list[LowerProfile] = []
+        self.profiles = np.zeros((0, 1, 6))
+        self.counts = np.zeros(0, dtype=np.int64)
+        self.radii = np.zeros(0)
+
+    def index_of(self, profile: LowerProfile) -> int:
+        key = id(profile)
+        k = self._index.get(key)
+        if k is None:
+            k = len(self._profiles)
+            self._index[key] = k
+            self._profiles.append(profile)
+            width = max(p.pieces.shape[0] for p in self._profiles)
+            table = np.zeros((len(self._profiles), width, 6))
+            for i, p in enumerate(self._profiles):
+                table[i, :p.pieces.shape[0]] = p.pieces
+            self.profiles = table
+            self.counts = np.array([p.pieces.shape[0] for p in self._profiles], dtype=np.int64)
+            self.radii = np.array([p.radius for p in self._profiles])
+        return k
+
+
+class SweepIndex:
+    """Sweeps in the order they were cut, with their footprint boxes and a grid of bins (``bin_size`` mm)."""
+
+    def __init__(self, bin_size: float) -> None:
+        if not bin_size > 0:
+            raise ValueError("bin_size must be > 0")
+        self.bin_size = bin_size
+        self.rows = np.zeros((64, NCOL))
+        self.boxes = np.zeros((64, 4))
+        self.z_low = np.zeros(64)
+        self.size = 0
+        self._bins: dict[tuple[int, int], list[int]] = defaultdict(list)
+
+    def _bin_range(self, box) -> tuple[range, range]:
+        s = self.bin_size
+        return (range(math.floor(box[0] / s), math.floor(box[2] / s) + 1),
+                range(math.floor(box[1] / s), math.floor(box[3] / s) + 1))
+
+    def add(self, row: np.ndarray, box: tuple[float, float, float, float], z_low: float) -> int:
+        if self.size == self.rows.shape[0]:
+            grow = self.rows.shape[0]
+            self.rows = np.concatenate([self.rows, np.zeros((grow, NCOL))])
+            self.boxes = np.concatenate([self.boxes, np.zeros((grow, 4))])
+            self.z_low = np.concatenate([self.z_low, np.zeros(grow)])
+        k = self.size
+        self.rows[k], self.boxes[k], self.z_low[k] = row, box, z_low
+        self.size += 1
+        xs, ys = self._bin_range(box)
+        for i in xs:
+            for j in ys:
+                self._bins[(i, j)].append(k)
+        return k
+
+    def near(self, box: tuple[float, float, float, float], z_max: float = math.inf) -> np.ndarray:
+        """Indices (ascending) of the sweeps whose footprint box overlaps ``box`` and whose lower
+        surface can be below ``z_max`` (mm)."""
+        xs, ys = self._bin_range(box)
+        if len(xs) * len(ys) > 4 * max(len(self._bins), 1):
+            found = np.arange(self.size)  # a box over most of the grid: scan them all
+        else:
+            hits: set[int] = set()
+            for i in xs:
+                for j in ys:
+                    hits.update(self._bins.get((i, j), ()))
+            found = np.fromiter(sorted(hits), dtype=np.int64, count=len(hits))
+        if found.size == 0:
+            return found
+        b = self.boxes[found]
+        keep = ((b[:, 0] <= box[2]) & (b[:, 2] >= box[0]) & (b[:, 1] <= box[3]) & (b[:, 3] >= box[1])
+                & (self.z_low[found] < z_max))
+        return found[keep]

@@ -1,0 +1,234 @@
+"""The analytic engine against closed forms, and CL by CL against the B-Rep engine where that is exact."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from fusioncut.engines.analytic.engine import AnalyticEngine, UnsupportedStock
+from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.brep.engine import BRepEngine
+from fusioncut.model import (ArcMove, BallEndMill, BoxStock, CLStatus, CylinderStock, FlatEndMill, LinearMove,
+                             SpindleDirection, Toolpath)
+
+ANGLE_TOL = 0.001  # degrees (issue 26: 0.001 against the B-Rep engine, 0.005 against closed forms)
+VOLUME_REL = 1e-7
+
+
+def run(moves, tools, stock, engine=AnalyticEngine, **opts):
+    eng = engine(EngineOptions(**opts))
+    return eng, list(eng.run(Toolpath(tuple(moves), tools), stock))
+
+
+def feed(p0, p1, tool=1):
+    return LinearMove(p0, p1, feed=600.0, tool=tool)
+
+
+def rot(p, ang_deg):
+    a = math.radians(ang_deg)
+    return (p[0] * math.cos(a) - p[1] * math.sin(a), p[0] * math.sin(a) + p[1] * math.cos(a), p[2])
+
+
+def angle_gap(a: float, b: float) -> float:
+    """|a - b| in degrees on the circle (an entry of 0 and of 360 are the same angle)."""
+    d = (a - b) % 360.0
+    return min(d, 360.0 - d)
+
+
+def assert_same_intervals(got, expected, tol):
+    assert len(got) == len(expected), (got, expected)
+    for (ge, gx), (ee, ex) in zip(sorted(got, key=lambda iv: iv[0] % 360), sorted(expected, key=lambda iv: iv[0] % 360)):
+        assert angle_gap(ge, ee) <= tol, (got, expected)
+        assert abs((gx - ge) - (ex - ee)) <= tol, (got, expected)
+
+
+def intervals(s):
+    return [(iv.entry, iv.exit) for iv in s.intervals]
+
+
+@pytest.mark.parametrize("feed_angle", [0.0, 37.0, 180.0])
+def test_full_slot_closed_form(feed_angle):
+    tool = FlatEndMill(10, 20)
+    stock = BoxStock((-60, -60, -20), (60, 60, 0))
+    _, maps = run([feed(rot((-80, 0, -3.0), feed_angle), rot((0, 0, -3.0), feed_angle))], {1: tool}, stock,
+                  max_segment_length=20.0)
+    last = maps[-1]
+    assert last.status == CLStatus.ENGAGED
+    assert len(last.engaged_slices) == 3
+    for s in last.engaged_slices:
+        assert_same_intervals(intervals(s), [(0.0, 180.0)], ANGLE_TOL)
+    assert last.ap == pytest.approx(3.0, abs=1e-9)
+    assert last.ae == pytest.approx(10.0, abs=1e-6)
+    assert last.removed_volume == pytest.approx(10 * 20 * 3, rel=VOLUME_REL)
+
+
+@pytest.mark.parametrize("ae", [1.0, 2.5, 8.0])
+@pytest.mark.parametrize("side", ["up", "down"])
+@pytest.mark.parametrize("spindle", [SpindleDirection.CW, SpindleDirection.CCW])
+def test_up_and_down_milling_closed_form(ae, side, spindle):
+    R = 5.0
+    tool = FlatEndMill(2 * R, 20, spindle=spindle)
+    plus_y = (side == "up") == (spindle == SpindleDirection.CW)
+    y = 1.0 / 3.0
+    stock = BoxStock((-50, y + R - ae, -20), (50, 40, 0)) if plus_y else BoxStock((-50, -40, -20), (50, y - R + ae, 0))
+    _, maps = run([feed((-70, y, -4), (0, y, -4))], {1: tool}, stock, max_segment_length=10.0)
+    last = maps[-1]
+    phi = math.degrees(math.acos(1 - ae / R))
+    expected = (0.0, phi) if side == "up" else (180.0 - phi, 180.0)
+    assert len(last.engaged_slices) == 4
+    for s in last.engaged_slices:
+        assert_same_intervals(intervals(s), [expected], ANGLE_TOL)
+    assert last.ae == pytest.approx(ae, abs=1e-6)
+    # a level cut of width ae and depth 4 along the 10 mm segment
+    assert last.removed_volume == pytest.approx(ae * 10 * 4, rel=VOLUME_REL)
+
+
+def test_ball_slot_closed_form():
+    R, depth = 5.0, 3.0
+    tool = BallEndMill(2 * R, 20)
+    stock = BoxStock((-60, -20, -20), (60, 20, 0))
+    _, maps = run([feed((-80, 2 / 3, -depth), (0, 2 / 3, -depth))], {1: tool}, stock, max_segment_length=20.0,
+                  slice_height=0.2)
+    last = maps[-1]
+    assert len(last.engaged_slices) == round(depth / 0.2)
+    for s in last.engaged_slices:
+        assert s.radius == pytest.approx(math.sqrt(R**2 - (R - s.z) ** 2), abs=1e-12)
+        assert_same_intervals(intervals(s), [(0.0, 180.0)], ANGLE_TOL)
+    assert last.ap == pytest.approx(depth, abs=1e-9)
+    # the slot's cross-section is the circular segment of height `depth`
+    segment = R * R * math.acos((R - depth) / R) - (R - depth) * math.sqrt(2 * R * depth - depth**2)
+    assert last.removed_volume == pytest.approx(20 * segment, rel=VOLUME_REL)
+
+
+def test_ball_ramp_engages_beyond_the_front_half_by_the_slope():
+    """A ball going down a ramp of slope m along +x, deep in the stock: a point of the sphere at
+    height z above the tip is on the sweep's front iff cos(theta) >= -m (R - z) / r(z) (the sphere's
+    normal against the motion), so each slice is engaged over 2 acos(-m (R - z) / r(z)) centred on the
+    feed direction (immersion 90); above the ball the cylinder's front half."""
+    R, m = 3.0, 0.15
+    tool = BallEndMill(2 * R, 20)
+    stock = BoxStock((-60, -20, -30), (60, 20, 0))
+    start, end = (-40.0, 0.0, -4.0), (0.0, 0.0, -4.0 - 40 * m)
+    _, maps = run([feed(start, end)], {1: tool}, stock, max_segment_length=5.0, slice_height=0.5, ramp_step=100.0)
+    last = maps[-1]
+    assert last.ap == pytest.approx(-end[2], abs=1e-9)
+    for s in last.engaged_slices:
+        if s.z < R:
+            r = math.sqrt(R * R - (R - s.z) ** 2)
+            half = math.degrees(math.acos(-m * (R - s.z) / r))
+        else:
+            half = 90.0
+        assert_same_intervals(intervals(s), [(90.0 - half, 90.0 + half)], ANGLE_TOL)
+
+
+def test_ball_going_up_a_ramp_touches_from_where_its_front_begins():
+    """A ball rising at angle a: the end sphere's front is the half facing the motion, whose lowest
+    point is R (1 - cos a) above the tip; the contact reaches up to the stock's top. (The B-Rep engine
+    gives 0.0370 instead of 0.0375 on such a move: a rapid rising at 9 degrees.)"""
+    R = 3.0
+    tool = BallEndMill(2 * R, 20)
+    stock = BoxStock((-60, -20, -30), (60, 20, 0))
+    start, end = (-40.0, 0.0, -6.0), (0.0, 0.0, -2.0)
+    _, maps = run([feed(start, end)], {1: tool}, stock, max_segment_length=5.0, ramp_step=100.0)
+    a = math.atan2(end[2] - start[2], end[0] - start[0])
+    assert maps[-1].axial_range == pytest.approx((R * (1 - math.cos(a)), -end[2]), abs=1e-9)
+
+
+def test_split_ramp_removes_what_the_whole_ramp_removes():
+    """Volumes add up: a ball ramp cut into 8 CLs removes what it removes as one CL (1e-7)."""
+    tool = BallEndMill(6, 20)
+    stock = BoxStock((-30, -20, -30), (30, 20, 0))
+    moves = [feed((-35.0, 1.0, 1.0), (20.0, 3.0, -3.0))]
+    _, whole = run(moves, {1: tool}, stock, ramp_step=100.0)
+    _, split = run(moves, {1: tool}, stock, ramp_step=100.0, max_segment_length=moves[0].length / 8 + 1e-9)
+    assert len(whole) == 1 and len(split) == 8
+    assert sum(m.removed_volume for m in split) == pytest.approx(whole[0].removed_volume, rel=VOLUME_REL)
+
+
+def test_helical_bore_removes_the_closed_form_pocket():
+    """A flat end mill (R 6) down a helix of radius 4 (1.75 turns to 3 mm deep), then one level turn:
+    the pocket is the cylinder of radius 10, 3 mm deep. The helix is swept exactly, not in steps."""
+    R, rho, depth, top = 6.0, 4.0, 3.0, 0.5
+    start = (rho, 0.0, top)
+    moves = [feed((rho, 0.0, 5.0), start),
+             ArcMove(start, (0.0, rho, -depth), center=(0.0, 0.0, top), clockwise=True, turns=1, feed=800.0, tool=1)]
+    pts = [(0.0, rho), (rho, 0.0), (0.0, -rho), (-rho, 0.0), (0.0, rho)]
+    moves += [ArcMove((*a, -depth), (*b, -depth), center=(0.0, 0.0, -depth), clockwise=True, feed=800.0, tool=1)
+              for a, b in zip(pts, pts[1:])]
+    stock = BoxStock((-20, -20, -10), (20, 20, 0))
+    _, maps = run(moves, {1: FlatEndMill(2 * R, 20.0)}, stock, ramp_step=1.0)
+    assert all(m.status != CLStatus.FAILED for m in maps)
+    assert sum(m.removed_volume for m in maps) == pytest.approx(math.pi * (rho + R) ** 2 * depth, rel=VOLUME_REL)
+    # on the helix below the top every CL cuts, and the slices below the helix's previous turn see
+    # material all along the front
+    helix = [m for m in maps[1:] if m.start[2] != m.position[2] and m.position[2] < 0]
+    assert helix and all(m.status == CLStatus.ENGAGED and m.removed_volume > 0 for m in helix)
+
+
+def test_a_wall_only_grazed_is_no_engagement():
+    """A slot cut 3 mm deep, then again 3 mm deeper along the same line: at the second pass's end the
+    tool's front lies on the end wall the first pass left, so only the 3 mm it cuts are engaged. The
+    rapid back goes down from -3 to -6 over 80 mm and takes 3 |x| / 80 mm off the floor of the last
+    20 mm (x in [-20, 0]): 10 mm wide, 75 mm³."""
+    tool = FlatEndMill(10, 20)
+    stock = BoxStock((-60, -30, -20), (60, 30, 0))
+    moves = [feed((-80, 0, -3), (0, 0, -3)), LinearMove((0, 0, -3), (-80, 0, -6), rapid=True, tool=1),
+             feed((-80, 0, -6), (0, 0, -6))]
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0)
+    last = maps[-1]
+    assert last.status == CLStatus.ENGAGED
+    assert last.ap == pytest.approx(3.0, abs=1e-9)
+    for s in last.engaged_slices:
+        assert_same_intervals(intervals(s), [(0.0, 180.0)], ANGLE_TOL)
+    assert last.removed_volume == pytest.approx(10 * 20 * 3 - 75, rel=VOLUME_REL)
+
+
+def test_starting_at_a_later_cl_gives_the_same_maps():
+    """The workpiece before a CL follows from the path: CLs 5.. alone equal CLs 5.. of a whole run."""
+    tool = BallEndMill(6, 20)
+    stock = BoxStock((-30, -20, -30), (30, 20, 0))
+    moves = [feed((-35.0, 0.0, -2.0), (25.0, 0.0, -2.0)), feed((25.0, 0.0, -2.0), (25.0, 4.0, -2.5)),
+             feed((25.0, 4.0, -2.5), (-35.0, 4.0, -2.5))]
+    tp = Toolpath(tuple(moves), {1: tool})
+    whole = list(AnalyticEngine(EngineOptions(max_segment_length=10.0)).run(tp, stock))
+    eng = AnalyticEngine(EngineOptions(max_segment_length=10.0))
+    eng.start(stock)
+    later = list(eng.process(tp, start_at=5))
+    assert [m.cl_index for m in later] == [m.cl_index for m in whole[5:]]
+    for a, b in zip(later, whole[5:]):
+        assert a.removed_volume == b.removed_volume
+        assert [intervals(s) for s in a.slices] == [intervals(s) for s in b.slices]
+
+
+def test_a_stock_that_is_not_a_box_is_refused_by_name():
+    with pytest.raises(UnsupportedStock, match="box stock"):
+        run([feed((0, 0, 0), (1, 0, 0))], {1: FlatEndMill(6, 10)}, CylinderStock((0, 0, 0), 10, 10))
+
+
+# -- against the B-Rep engine, CL by CL ---------------------------------------------------------------
+def assert_agree(moves, tools, stock, **opts):
+    _, ours = run(moves, tools, stock, **opts)
+    _, theirs = run(moves, tools, stock, engine=BRepEngine, **opts)
+    assert len(ours) == len(theirs)
+    for a, b in zip(ours, theirs):
+        assert a.status == b.status, a.cl_index
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=1e-6, abs=1e-9), a.cl_index
+        assert a.ap == pytest.approx(b.ap, abs=1e-9), a.cl_index
+        assert len(a.slices) == len(b.slices), a.cl_index
+        for s, t in zip(a.slices, b.slices):
+            assert s.z == pytest.approx(t.z, abs=1e-9)
+            assert_same_intervals(intervals(s), intervals(t), ANGLE_TOL)
+
+
+def test_agrees_with_brep_on_a_flat_slot_then_side_milling_and_an_arc():
+    moves = [feed((-40, 3, -3), (0, 3, -3)),
+             ArcMove((0, 3, -3), (10, -7, -3), feed=600.0, tool=1, center=(0, -7, -3), clockwise=True),
+             feed((10, -7, -3), (10, -25, -3))]
+    assert_agree(moves, {1: FlatEndMill(10, 20)}, BoxStock((-30, -30, -20), (30, 5, 0)), max_segment_length=10.0)
+
+
+def test_agrees_with_brep_on_a_ball_slot_and_a_deeper_pass_beside_it():
+    moves = [feed((-40, 0, -2), (0, 0, -2)), feed((0, 0, -2), (0, 20, -2)),
+             LinearMove((0, 20, -2), (0, 20, 5), rapid=True, tool=1), LinearMove((0, 20, 5), (-40, 2, 5), rapid=True, tool=1),
+             feed((-40, 2, 5), (-40, 2, -3)), feed((-40, 2, -3), (0, 2, -3))]
+    assert_agree(moves, {1: BallEndMill(6, 20)}, BoxStock((-30, -30, -20), (30, 30, 0)), max_segment_length=10.0)
