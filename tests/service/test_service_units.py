@@ -141,7 +141,7 @@ def test_demo_gcode_reads_back_as_the_demo_toolpath():
     from fusioncut.demo import demo_toolpath
     from fusioncut.io.gcode import parse_gcode_text
     from fusioncut.io.job import Job
-    from fusioncut.service.demo import demo_gcode, demo_job
+    from fusioncut.demo import demo_gcode, demo_job
 
     job = Job.model_validate(demo_job())
     tp = parse_gcode_text(demo_gcode(), tools={t.number: t.build() for t in job.tools})

@@ -15,10 +15,10 @@ from fastapi.responses import JSONResponse, Response
 from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import UploadFile
 
+from fusioncut.demo import DEMO_FILE, demo_gcode, demo_job
 from fusioncut.errors import FusionCutError
 from fusioncut.io.job import Job
 from fusioncut.service.core import ClusterUnavailable
-from fusioncut.service.demo import DEMO_FILE, demo_gcode, demo_job
 from fusioncut.service.files import check_name
 from fusioncut.service.models import JobList, JobStatus, Problem
 from fusioncut.service.routes.access import PROBLEMS, Api, api, owner
@@ -81,7 +81,9 @@ def _checked(job: Job, staged: Path, a: Api) -> Any:
 
 
 def _demo(name: str | None, staged: Path) -> Job:
-    """The built-in demo job, its G-code written into the staged folder."""
+    """The built-in demo (:mod:`fusioncut.demo`, the job ``fusioncut demo`` runs) as a job of files: its
+    G-code is written into the staged folder, so that it is run, resumed, listed and downloaded
+    exactly like an uploaded job."""
     write_text_files({DEMO_FILE: demo_gcode()}, staged)
     return Job.model_validate(demo_job(name or "demo"))
 
