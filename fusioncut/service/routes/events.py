@@ -137,7 +137,8 @@ async def job_events(job_id: str, request: Request, who: str = Depends(owner), a
     200: {"content": {"text/event-stream": {}},
           "description": "`job` events (JobStatus) for every job of the key that changes, "
                          "`deleted` events ({id}) for jobs that went away"}})
-async def all_events(request: Request, who: str = Depends(owner), s: EventStreams = Depends(streams)) -> StreamingResponse:
+async def all_events(request: Request, who: str = Depends(owner),
+                     s: EventStreams = Depends(streams)) -> StreamingResponse:
     """Server-sent events for all jobs of this key (one connection for the whole job list)."""
     last: dict[str, Any] = {}
 
