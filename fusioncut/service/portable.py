@@ -63,9 +63,9 @@ def portable(results: Any, job_dir: Path) -> Any:
     metadata named portably (changed in place, and returned)."""
     folders = job_folders(job_dir)
     cl = results.cl
-    if len(cl):
-        for col in ("file", "reason", "warnings"):
-            cl[col] = cl[col].map(lambda s: portable_text(str(s), *folders)).astype(cl[col].dtype)
+    for col in ("file", "reason", "warnings"):
+        for f in folders:  # portable_text, column-wise
+            cl[col] = cl[col].str.replace(f"{f}{os.sep}", "", regex=False).str.replace(str(f), ".", regex=False)
     results.metadata = portable_value(results.metadata, *folders)
     if results.options is not None:
         results.options = portable_value(results.options, *folders)
