@@ -22,7 +22,7 @@ from typing import NamedTuple
 from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.engines.brep.layers import Layer, solid_layers, stack_box, stack_solid, stack_volume
-from fusioncut.engines.brep.occ import Vec3, bounding_box, count_faces, quarters, solids, volume
+from fusioncut.engines.brep.occ import Vec3, bounding_box, count_faces, in_box, solids, volume
 from fusioncut.engines.brep.sweep import cylinder_tool
 from fusioncut.engines.ceiling import Box, SweepFootprint, tool_radii
 from fusioncut.model.moves import ArcMove, Move
@@ -115,6 +115,58 @@ class Cell:
 
 
 # -- the quadtree -------------------------------------------------------------------------------------
+
+
+def split_into_cells(solid: TopoDS_Shape, size: float | None) -> list[tuple[TopoDS_Shape, Square | None]]:
+    """``solid`` cut into square columns of ``size`` mm in X and Y (full height); ``None``: whole.
+
+    Returns (piece, square) per column, the square ``[x0, x0 + size] × [y0, y0 + size]`` it
+    stands for (the outer columns' pieces reach past it: no sliver of material is left out); the
+    square is None for the whole solid. Columns without material are left out. The grid starts at
+    the corner of the solid's exact bounding box: the usual box is widened by the edges' tolerance
+    (1e-7 mm), and walls that far from the round coordinates CAM programs use (a helix centred on a
+    wall) sit within the kernel's tolerance of the sweeps' edges; the cells' volumes then drifted by
+    1e-6 mm³ per CL, 1.7e-8 of the removal on a helical entry, against 3e-14 with exact walls.
+    """
+    if size is None:
+        return [(solid, None)]
+    lo, hi = bounding_box(solid, exact=True)
+    nx = max(1, math.ceil((hi[0] - lo[0]) / size - 1e-9))
+    ny = max(1, math.ceil((hi[1] - lo[1]) / size - 1e-9))
+    out = []
+    for i in range(nx):
+        for j in range(ny):
+            x0, y0 = lo[0] + i * size, lo[1] + j * size
+            x1 = x0 + size if i < nx - 1 else hi[0] + 1.0
+            y1 = y0 + size if j < ny - 1 else hi[1] + 1.0
+            piece = in_box(solid, (x0 - 1.0 if i == 0 else x0, y0 - 1.0 if j == 0 else y0, lo[2] - 1.0),
+                            (x1, y1, hi[2] + 1.0))
+            if piece is not None:
+                out.append((piece, Square(x0, y0, size)))
+    return out
+
+
+def quarters(solid: TopoDS_Shape, x: float, y: float) -> list[TopoDS_Shape | None]:
+    """``solid`` split by the planes ``x`` and ``y`` (mm) into its quadrants, in the order
+    (-x, -y), (+x, -y), (-x, +y), (+x, +y); None where a quadrant holds no material."""
+    lo, hi = bounding_box(solid)
+    out = []
+    for ya, yb in ((lo[1] - 1.0, y), (y, hi[1] + 1.0)):
+        for xa, xb in ((lo[0] - 1.0, x), (x, hi[0] + 1.0)):
+            out.append(in_box(solid, (xa, ya, lo[2] - 1.0), (xb, yb, hi[2] + 1.0)) if xa < xb and ya < yb else None)
+    return out
+
+
+def halves(solid: TopoDS_Shape, axis: int, at: float) -> tuple[TopoDS_Shape | None, TopoDS_Shape | None]:
+    """``solid`` split by the plane ``x = at`` (``axis`` 0) or ``y = at`` (1), mm: the parts below
+    and above it, None where a part holds no material."""
+    lo, hi = bounding_box(solid)
+    lo, hi = [c - 1.0 for c in lo], [c + 1.0 for c in hi]
+    below, above = list(hi), list(lo)
+    below[axis] = above[axis] = at
+    return in_box(solid, tuple(lo), tuple(below)), in_box(solid, tuple(above), tuple(hi))
+
+
 
 
 def smallest_square(cell_size: float | None) -> float:

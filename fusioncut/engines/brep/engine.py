@@ -47,14 +47,15 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.brep.cells import (
-    Cell, ClearedTool, Square, column_clear_of, quarter_cells, reach_box, smallest_square, starts_cleared,
+    Cell, ClearedTool, Square, column_clear_of, quarter_cells, reach_box, smallest_square, split_into_cells,
+    starts_cleared,
 )
 from fusioncut.engines.brep.checkpoint import EngineState, load_checkpoint, save_checkpoint
 from fusioncut.engines.brep.contact import ContactFace, arc_contacts, find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import CuttingRegion, StackCut, contact_patches, cut_stack
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, compound, count_faces, face_map, faces, on_old_boundary, pieces,
-    split_into_cells, unify, volume, write_brep,
+    unify, volume, write_brep,
 )
 from fusioncut.engines.brep.solid_cut import SolidCut, SolidCutter, end_probes
 from fusioncut.engines.brep.stock import stock_solid
@@ -121,8 +122,7 @@ class BRepEngine:
         self.stock_volume = volume(solid)
         self.removed_total = 0.0
         self.cleared = None
-        self.cells = [Cell.of_solid(piece, Square(*square) if square else None)
-                      for piece, square in split_into_cells(solid, self.options.cell_size)]
+        self.cells = [Cell.of_solid(piece, square) for piece, square in split_into_cells(solid, self.options.cell_size)]
         self.adopt_layers()
 
     def adopt_layers(self) -> None:

@@ -28,9 +28,9 @@ from typing import NamedTuple
 from OCP.TopAbs import TopAbs_SOLID
 from OCP.TopoDS import TopoDS_Shape
 
-from fusioncut.engines.brep.cells import Cell, neighbours
+from fusioncut.engines.brep.cells import Cell, halves, neighbours
 from fusioncut.engines.brep.occ import (
-    Vec3, compound, fuse_all, halves, intersections, split_pieces, strictly_inside, unify, volume, volume_change,
+    Vec3, compound, fuse_all, intersections, split_pieces, strictly_inside, unify, volume, volume_change,
     without_slivers,
 )
 from fusioncut.engines.brep.sweep import SweptVolume

@@ -160,7 +160,7 @@ def test_a_slot_on_a_cell_wall_tangent_to_a_plunge_hole_is_cut_joined_with_the_n
 
 
 def test_halves_split_a_solid_at_a_wall():
-    from fusioncut.engines.brep.occ import halves
+    from fusioncut.engines.brep.cells import halves
     from fusioncut.engines.brep.stock import stock_solid
 
     block = stock_solid(BLOCK)  # 40 x 30 x 10 mm
