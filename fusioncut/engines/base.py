@@ -14,7 +14,7 @@ from fusioncut.model.moves import Toolpath
 from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool
 
-__all__ = ["LOWER_BOUNDS", "Engine", "EngineKind", "EngineOptions", "SweepMethod"]
+__all__ = ["LOWER_BOUNDS", "SWEEP_CHOICES", "Engine", "EngineKind", "EngineOptions", "SweepMethod"]
 
 
 class SweepMethod(StrEnum):
@@ -28,6 +28,10 @@ class SweepMethod(StrEnum):
     EXACT = "exact"
     SAMPLED = "sampled"
     STEP = "step"
+
+
+# the sweep methods a job may ask for (``EngineOptions.sweep``); STEP is only ever reported
+SWEEP_CHOICES = (SweepMethod.EXACT, SweepMethod.SAMPLED)
 
 
 class EngineKind(StrEnum):
@@ -109,8 +113,9 @@ class EngineOptions:
             sweep = SweepMethod(self.sweep)
         except ValueError:
             sweep = None
-        if sweep not in (SweepMethod.EXACT, SweepMethod.SAMPLED):
-            raise InputError(f"options.sweep: {self.sweep!r} is not one of 'exact', 'sampled'")
+        if sweep not in SWEEP_CHOICES:
+            raise InputError(f"options.sweep: {self.sweep!r} is not one of "
+                             + ", ".join(repr(s.value) for s in SWEEP_CHOICES))
         object.__setattr__(self, "sweep", sweep)
         for name, low in LOWER_BOUNDS.items():
             value = getattr(self, name)

@@ -2,8 +2,9 @@
 leaves a cell alone.
 
 A :class:`Cell` holds the material of one grid column over the full stock height, as a B-Rep solid
-or as a stack of 2.5D layers (:mod:`fusioncut.engines.brep.layers`). The grid is a quadtree: a solid
-cell may be replaced by its four quarter squares (:func:`quarter_cells`), down to
+or as a stack of 2.5D layers (:mod:`fusioncut.engines.brep.layers`). The grid is laid over the stock
+by :func:`split_into_cells` and is a quadtree: a solid cell may be replaced by its four quarter
+squares (:func:`quarter_cells`), down to
 ``cell_size / MAX_SPLIT``, so that only the part near material that is not 2.5D stays solid.
 
 Before a sweep is built a CL drops the cells it cannot cut: those outside the box of the tool's reach
