@@ -26,15 +26,14 @@ from typing import Any
 from fusioncut.service.files import INPUT_DIR
 
 # result files whose text may hold a server path, by suffix; the others (images, meshes) do not
-_TEXT_SUFFIXES = (".csv", ".log")
-_REWRITTEN = (*_TEXT_SUFFIXES, ".json", ".parquet")
+_REWRITTEN = (".csv", ".log", ".json", ".parquet")
 _CHUNK_BYTES = 1 << 20
 _SIZES_KEPT = 256  # versions of result files whose portable size is remembered
 _sizes: OrderedDict[tuple, int] = OrderedDict()
 _sizes_lock = threading.Lock()
 
 
-def portable_text(text: str, *folders: Path) -> str:
+def portable_text(text: str, *folders: Path | str) -> str:
     """``text`` with each of ``folders`` (innermost first) left out of the paths that start with it:
     ``<folder>/name`` becomes ``name`` and ``<folder>`` alone becomes ``.``."""
     for f in folders:
@@ -85,7 +84,10 @@ def portable_download(path: Path, job_dir: Path) -> tuple[Iterator[bytes], int |
     suffix = path.suffix.lower()
     if suffix not in _REWRITTEN:
         return _chunks(f), os.fstat(f.fileno()).st_size
-    if suffix in _TEXT_SUFFIXES:
+    if suffix == ".csv":
+        # a quoted cell doubles the quotes of a path in it: rewrite that form of the folders too
+        return _text_lines(f, tuple(x for d in folders for x in (str(d).replace('"', '""'), str(d)))), None
+    if suffix == ".log":
         return _text_lines(f, folders), None
     with f:
         data = _json_bytes(f, folders) if suffix == ".json" else _parquet_bytes(f, folders)
@@ -120,8 +122,9 @@ def _chunks(f: Any) -> Iterator[bytes]:
             yield block
 
 
-def _text_lines(f: Any, folders: tuple[Path, ...]) -> Iterator[bytes]:
-    """Line by line (a path never spans lines; a CSV cell keeps its quoting, only shorter)."""
+def _text_lines(f: Any, folders: tuple[Path | str, ...]) -> Iterator[bytes]:
+    """Line by line: a path spans lines only where a folder's name holds a line break, which is then
+    left as it is. A CSV cell keeps its quoting (a path out of a quoted cell leaves it quoted)."""
     with f:
         out = []
         size = 0
