@@ -49,7 +49,7 @@ def create_app(settings: Settings | None = None, service: Service | None = None)
                   description=DESCRIPTION)
     app.state.api = Api(service, settings)
     app.state.events = events.EventStreams(app.state.api)
-    app.state.scenes = scenes.SceneRoutes(service)
+    app.state.scenes = scenes.SceneReplays(service)
     app.add_middleware(BodyLimit, limit=settings.max_upload_bytes)
     app.add_exception_handler(RequestValidationError, _invalid)  # type: ignore[arg-type]
     app.add_exception_handler(Exception, _internal)

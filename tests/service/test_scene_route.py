@@ -249,10 +249,10 @@ class _Cluster:
 def test_one_replay_per_job_the_latest_cl_wins(tmp_path):
     from types import SimpleNamespace
 
-    from fusioncut.service.routes.scenes import SCENE_PRIORITY, SceneRoutes
+    from fusioncut.service.routes.scenes import SCENE_PRIORITY, SceneReplays
 
     cluster = _Cluster(tmp_path)
-    routes, rec = SceneRoutes(cluster), SimpleNamespace(id="j1")
+    routes, rec = SceneReplays(cluster), SimpleNamespace(id="j1")
     scenes = tmp_path / SCENES_DIR
     assert routes._mesh_state(rec, 5)[0] == "pending"
     assert routes._mesh_state(rec, 5)[0] == "pending"  # asked again: the same task

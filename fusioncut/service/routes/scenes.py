@@ -72,8 +72,8 @@ SCENE_RESPONSES: dict[int | str, dict[str, Any]] = {
 }
 
 
-class SceneRoutes:
-    """The scene requests of one service: in-flight replays by job, failures remembered."""
+class SceneReplays:
+    """The scene replays of one application (``app.state.scenes``): in flight by job, failures remembered."""
 
     def __init__(self, service: Any, max_triangles: int = DEFAULT_MAX_TRIANGLES):
         self.service = service
@@ -175,7 +175,7 @@ class SceneRoutes:
         return FileResponse(path, media_type=GLB_MEDIA_TYPE, headers={"Cache-Control": "private, max-age=3600"})
 
 
-def scene_routes(request: Request) -> SceneRoutes:
+def scene_replays(request: Request) -> SceneReplays:
     return request.app.state.scenes
 
 
@@ -183,7 +183,7 @@ def scene_routes(request: Request) -> SceneRoutes:
             responses={**PROBLEMS, 200: {"content": {GLB_MEDIA_TYPE: {}},
                                          "description": "the scene after the CL, glTF binary"}})
 def scene_glb(job_id: str, cl: int = Query(..., ge=0, description="CL index"), who: str = Depends(owner),
-              a: Api = Depends(api), scenes: SceneRoutes = Depends(scene_routes)) -> FileResponse:
+              a: Api = Depends(api), scenes: SceneReplays = Depends(scene_replays)) -> FileResponse:
     """The scene after CL `cl` as glTF binary, once `/scene?cl=` says `ready` (mm in the
     `machine_frame` node's children; that node scales to glTF's metres, Y up)."""
     return scenes.glb(a.job(job_id, who), cl)
@@ -192,7 +192,7 @@ def scene_glb(job_id: str, cl: int = Query(..., ge=0, description="CL index"), w
 @router.get("/api/jobs/{job_id}/scene", response_model=Scene | SceneAtCl,
             responses={**PROBLEMS, **SCENE_RESPONSES})
 def scene(job_id: str, cl: int | None = CL_QUERY, who: str = Depends(owner), a: Api = Depends(api),
-          scenes: SceneRoutes = Depends(scene_routes)) -> Any:
+          scenes: SceneReplays = Depends(scene_replays)) -> Any:
     """Data for the 3D view: stock outline, IPW mesh file (if any), tools, CL points; with `?cl=N`
     the workpiece after CL N (a GLB, replayed on a worker and cached), the tool at N and its contact."""
     rec = a.job(job_id, who)
