@@ -23,7 +23,7 @@ from fusioncut.model import (AngleInterval, AptCutter, AptParameters, ArcMove, A
                              FlatEndMill, LinearMove, MillingTool, Move, SliceEngagement, SolidStock,
                              SpindleDirection, Stock, TaperedEndMill, Toolpath, ToolProfile)
 
-__version__ = "0.1.0"
+from fusioncut._version import __version__
 
 # name -> module that defines it, imported on first use (PEP 562)
 _LAZY = {

@@ -1,6 +1,6 @@
 """The ``fusioncut`` command line.
 
-Each sub-module ``fusioncut/cli/<name>.py`` defines ``register(app)`` adding its commands, so that
+Each public sub-module ``fusioncut/cli/<name>.py`` (no leading underscore) defines ``register(app)`` adding its commands, so that
 commands can be written independently. Errors of the project's own types are printed as one clear
 line (file:line or CL) with exit code 2, never as a traceback.
 """
@@ -13,5 +13,5 @@ import typer
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Exact cutter-workpiece engagement for milling.")
 
-for _mod in sorted(m.name for m in pkgutil.iter_modules(__path__)):
+for _mod in sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_")):
     importlib.import_module(f"{__name__}.{_mod}").register(app)

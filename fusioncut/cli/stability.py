@@ -21,8 +21,8 @@ from rich.console import Console
 from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
-from fusioncut.cli.forces import (_COEFFICIENTS_HELP, _MATERIAL_HELP, _coefficients, _rpm_range, _setup, _tool_info,
-                                  _write_table)
+from fusioncut.cli._process import (_COEFFICIENTS_HELP, _MATERIAL_HELP, _coefficients, _rpm_range, _setup, _tool_dynamics,
+                                   _tool_info, _write_table)
 
 console = Console()
 
@@ -111,44 +111,6 @@ def stability(
                       f"needs more than --sd-max-steps {sd_max_steps} steps (their margin is ZOA's)", highlight=False)
     console.print(f"wrote {', '.join(wrote)} in {escape(str(out))}", highlight=False)
 
-
-def _tool_dynamics(specs: list[str], tools: dict[str, Any], n_modes: Optional[int]) -> dict[str, Any]:
-    """The dynamics of every tool label from ``--modes`` values: ``TOOL=FILE`` (TOOL a label or ``T<n>``)
-    for one tool, a plain ``FILE`` for the others; each file read (and an FRF fitted) once."""
-    from fusioncut.analysis.dynamics import read_dynamics
-    from fusioncut.errors import InputError
-
-    names = {label: label for label in tools}
-    names.update({f"T{t.number}": label for label, t in tools.items() if t.number is not None})
-    default: Optional[str] = None
-    per_tool: dict[str, str] = {}
-    for spec in specs:
-        head, sep, tail = spec.partition("=")
-        if sep and head.strip() in names:
-            per_tool[names[head.strip()]] = tail
-        elif default is not None:
-            raise InputError(f"--modes {spec!r}: a second file for every tool (tools: {', '.join(sorted(names))}; "
-                             "name one as TOOL=FILE)")
-        else:
-            default = spec
-    read: dict[str, Any] = {}
-    out = {}
-    for label in tools:
-        path = per_tool.get(label, default)
-        if path is None:
-            raise InputError(f"no --modes for tool {label!r}: give --modes FILE or --modes {label}=FILE")
-        if path not in read:
-            read[path] = read_dynamics(Path(path), n_modes)
-            for d, fit in read[path][1].items():
-                console.print(f"{escape(path)} FRF {escape(str(d))}: {len(fit.modes)} mode(s) " + ", ".join(
-                    f"{m.fn_hz:.1f} Hz zeta {m.zeta:.4f} k {m.k_n_per_m:.4g} N/m" for m in fit.modes)
-                    + f"; fit error {100 * fit.relative_rms_error:.2f} % (relative RMS)", highlight=False)
-                if fit.relative_rms_error > 0.1:
-                    console.print(f"[yellow]note:[/] the modal fit of {escape(str(d))} misses the FRF by "
-                                  f"{100 * fit.relative_rms_error:.0f} %: check the modes (--fit-modes)",
-                                  highlight=False)
-        out[label] = read[path][0]
-    return out
 
 
 def _chosen_row(table: Any, cl: Optional[int]) -> Any:

@@ -57,7 +57,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from fusioncut import __version__
+from fusioncut._version import __version__
 from fusioncut.errors import InputError
 from fusioncut.io.result_columns import (
     ANGLE_KIND, CL_COLUMNS, SLICE_COLUMNS, STATUS_CATEGORIES, SUMMARY_COLUMNS, TABLES, Column, column_table,
