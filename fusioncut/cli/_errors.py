@@ -27,6 +27,3 @@ def friendly_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
 
     return wrapper
 
-
-def register(app: typer.Typer) -> None:  # not a command module
-    del app
