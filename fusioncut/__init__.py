@@ -22,6 +22,7 @@ from fusioncut.model import (AngleInterval, AptCutter, AptParameters, ArcMove, A
                              BullNoseEndMill, ChamferMill, CLStatus, CylinderStock, Drill, EngagementMap,
                              FlatEndMill, LinearMove, MillingTool, Move, SliceEngagement, SolidStock,
                              SpindleDirection, Stock, TaperedEndMill, Toolpath, ToolProfile)
+from fusioncut.model.options import EngineOptions, SweepMethod
 
 from fusioncut._version import __version__
 
@@ -32,7 +33,6 @@ _LAZY = {
     "read_toolpath": "fusioncut.io.readers", "read_tool_library": "fusioncut.io.readers",
     "load_job": "fusioncut.io.job", "Job": "fusioncut.io.job",
     "load_results": "fusioncut.io.results", "Results": "fusioncut.io.results",
-    "EngineOptions": "fusioncut.engines.base", "SweepMethod": "fusioncut.engines.base",
 }
 
 __all__ = [

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal, get_args, get_type_hi
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
-from fusioncut.engines.base import EngineOptions
+from fusioncut.model.options import EngineOptions
 from fusioncut.errors import InputError, ToolDefinitionError
 from fusioncut.io.json_input import read_json
 from fusioncut.io.readers import read_toolpath  # noqa: F401 - the runner reads toolpaths from here
@@ -255,7 +255,7 @@ class _RunOptions(_Strict):
 
 Options = create_model(  # type: ignore[call-overload]
     "Options", __base__=_RunOptions, __module__=__name__,
-    __doc__="Engine options (the fields of :class:`fusioncut.engines.base.EngineOptions` but "
+    __doc__="Engine options (the fields of :class:`fusioncut.model.options.EngineOptions` but "
             ":data:`ENGINE_ONLY`, with their defaults and help; lengths mm) and run options.\n\n"
             + (_RunOptions.__doc__ or ""),
     **{f.name: _engine_option(f) for f in engine_option_fields()})

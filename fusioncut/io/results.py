@@ -7,7 +7,7 @@ A results directory holds
 * ``summary.csv`` — one row per operation,
 * ``metadata.json`` — what the engine knew beyond the rows (the same JSON is stored in the Parquet
   schema metadata under the key ``fusioncut``; every Parquet field also carries its own ``unit`` and
-  ``description``): ``engine_options`` (every :class:`~fusioncut.engines.base.EngineOptions` field,
+  ``description``): ``engine_options`` (every :class:`~fusioncut.model.options.EngineOptions` field,
   enums and paths as text, tuples as lists), ``slice_height_mm``, ``tools`` (tool label -> the tool's
   full record, :mod:`fusioncut.io.tool_records`, from which :func:`load_results` rebuilds the
   :class:`~fusioncut.model.tools.MillingTool`), units, dtypes, angle convention, FusionCut version
@@ -291,7 +291,7 @@ class ResultWriter:
     ``tools`` maps tool labels to the tools (:class:`~fusioncut.model.tools.MillingTool`, stored as
     their full records, :func:`~fusioncut.io.tool_records.tool_record`) or to JSON-serialisable
     descriptions; labels seen in the engagement maps without one are added with an empty description.
-    ``options`` are the engine's options (:class:`~fusioncut.engines.base.EngineOptions` or a mapping
+    ``options`` are the engine's options (:class:`~fusioncut.model.options.EngineOptions` or a mapping
     of its fields), stored as ``engine_options``; their ``slice_height`` is also ``slice_height_mm``
     and gives each slice row its band (:func:`slice_rows`). Without them the bands are NaN.
 
