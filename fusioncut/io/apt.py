@@ -59,23 +59,35 @@ motion of a program has no known start: it only sets the position (a warning is 
 """
 from __future__ import annotations
 
-import math
-import re
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from fusioncut.errors import FusionCutError, InputError, SourceLocation, ToolDefinitionError
-from fusioncut.io.apt_arcs import MAX_EXTRA_TURNS, TangentCheck, nx_circle_axis, nx_marker_line, solve_arc
+from fusioncut.errors import (
+    FusionCutError,
+    InputError,
+    SourceLocation,
+    ToolDefinitionError,
+)
+from fusioncut.io.apt_arcs import (
+    MAX_EXTRA_TURNS,
+    TangentCheck,
+    nx_circle_axis,
+    nx_marker_line,
+    solve_arc,
+)
+from fusioncut.io.apt_lexer import NUMBER, Record, records
+from fusioncut.io.cutters import (
+    ToolRegistry,
+    check_tool_axis,
+    cutter_from_parameters,
+    finite,
+    read_source_text,
+)
 from fusioncut.model.moves import ArcMove, LinearMove, Move, Point, Toolpath
 from fusioncut.model.tools import (
     ASSUMED_FLUTE_LENGTH_DIAMETERS,
-    AptCutter,
-    AptParameters,
-    BallEndMill,
-    BullNoseEndMill,
     ChamferMill,
-    FlatEndMill,
     MillingTool,
     SpindleDirection,
     TaperedEndMill,
@@ -84,234 +96,7 @@ from fusioncut.model.units import MM_PER_INCH
 
 __all__ = ["read_apt", "cutter_from_parameters"]
 
-# Coordinates beyond a kilometre are garbage, not a machine; refusing them early keeps the arithmetic
-# below (squares, trigonometry) away from overflow.
-MAX_ABS_VALUE = 1e6
-_AXIS_TOL = 1e-6  # tolerance on unit tool-axis / arc-axis components
 _DIM_TOL = 1e-6  # mm; dimensions closer than this are equal
-
-
-# --------------------------------------------------------------------------------------------------
-# helpers shared with the JSON reader
-
-
-def read_source_text(path: str | Path) -> str:
-    """The file's text: UTF-8 (with or without BOM), else Windows-1252/Latin-1 as CAM posts on
-    Windows write it. Unreadable files raise :class:`InputError`."""
-    try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise InputError(f"cannot read the file: {e.strerror or e}", SourceLocation(str(path))) from e
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return data.decode("latin-1")
-
-
-def finite(value: float, what: str, where: SourceLocation) -> float:
-    """``value`` if it is finite and within :data:`MAX_ABS_VALUE`, else an :class:`InputError`."""
-    if not math.isfinite(value) or abs(value) > MAX_ABS_VALUE:
-        raise InputError(f"{what} {value!r} is out of range", where)
-    return value
-
-
-def check_tool_axis(axis: tuple[float, float, float], where: SourceLocation) -> None:
-    """Refuse any tool axis but +z: the engines model 3-axis milling only."""
-    n = math.sqrt(sum(c * c for c in axis))
-    if n < 1e-9:
-        raise InputError(f"tool axis {axis} has zero length", where)
-    u = tuple(c / n for c in axis)
-    if abs(u[0]) > _AXIS_TOL or abs(u[1]) > _AXIS_TOL or u[2] < 1 - _AXIS_TOL:
-        raise InputError(
-            f"5-axis not supported yet: tool axis ({u[0]:.6g}, {u[1]:.6g}, {u[2]:.6g}) is not (0, 0, 1)", where
-        )
-
-
-def _same_geometry(a: MillingTool, b: MillingTool) -> bool:
-    return replace(a, number=None, name="", spindle=SpindleDirection.CW) == replace(
-        b, number=None, name="", spindle=SpindleDirection.CW
-    )
-
-
-class ToolRegistry:
-    """Collects the tools a program uses, keyed by tool number.
-
-    Programs that give no number, or reuse a number for a different cutter (NX numbers every tool 0
-    unless told otherwise), get the next free number and a warning, so that one number never stands
-    for two geometries.
-    """
-
-    def __init__(self, warn: Callable[[str], None]):
-        self.tools: dict[int, MillingTool] = {}
-        self._warn = warn
-        self._spindle_warned: set[int] = set()
-
-    def _free_number(self) -> int:
-        n = 1
-        while n in self.tools:
-            n += 1
-        return n
-
-    def register(self, number: int | None, tool: MillingTool, defined_at: SourceLocation) -> int:
-        """The number under which ``tool`` (defined at ``defined_at``, programmed as ``number``) is kept."""
-        if number is None:
-            n = self._free_number()
-            self._warn(f"{defined_at}: the cutter has no tool number; numbered T{n}")
-        elif number in self.tools and not _same_geometry(self.tools[number], tool):
-            n = self._free_number()
-            self._warn(f"{defined_at}: tool number {number} is reused for a different cutter; numbered T{n}")
-        else:
-            n = number
-        if n not in self.tools:
-            self.tools[n] = replace(tool, number=n)
-        elif self.tools[n].spindle != tool.spindle and n not in self._spindle_warned:
-            self._spindle_warned.add(n)
-            self._warn(f"{defined_at}: T{n} runs in both spindle directions; modelled as {self.tools[n].spindle.value}")
-        return n
-
-
-def make_tool(cls: type[MillingTool], where: SourceLocation, context: str = "", **kwargs) -> MillingTool:
-    """Build a model tool, re-raising its geometry errors at ``where`` (``context``, e.g. a JSON path,
-    is put in front of the message)."""
-    try:
-        return cls(**kwargs)
-    except ToolDefinitionError as e:
-        raise ToolDefinitionError(f"{context}: {e.reason}" if context else e.reason, where) from e
-
-
-def cutter_from_parameters(
-    d: float,
-    r: float,
-    alpha: float,
-    beta: float,
-    h: float,
-    where: SourceLocation,
-    *,
-    e: float | None = None,
-    f: float | None = None,
-    name: str = "",
-) -> MillingTool:
-    """The tool an APT-style parameter set describes (mm, degrees; see :mod:`fusioncut.model.tools`).
-
-    The named families are recognised from ``(d, r, alpha, beta)`` alone, so ISO 4343 cutters and
-    Fusion's APT post (which writes the *tip diameter* in the ``e`` slot) read the same:
-
-    * alpha = beta = 0: flat (r = 0), ball (r = d/2) or bull-nose end mill;
-    * r = alpha = 0, beta > 0: tapered end mill with tip diameter d, or, for d = 0, a pointed cone
-      (V-bit) of half-angle beta reaching diameter ``2 h tan(beta)`` at the top of the flutes;
-    * r = beta = 0, alpha > 0: pointed cone of half-angle ``90 - alpha`` up to diameter d;
-    * anything else: an :class:`AptCutter`, whose ``(e, f)`` must be given and consistent, or - when
-      they are not given (NX 5-parameter form) - follow from tangency of the corner with the bottom
-      line through the tip and with the side line reaching diameter d at the corner.
-    """
-    if not (d >= 0 and r >= 0 and h > 0):
-        raise ToolDefinitionError(f"cutter needs d >= 0, r >= 0 and a flute length > 0 (d={d}, r={r}, h={h})", where)
-    common = {"flute_length": h, "name": name}
-    if abs(alpha) < 1e-9 and abs(beta) < 1e-9:
-        if d <= _DIM_TOL:
-            raise ToolDefinitionError(f"cutter diameter must be > 0, got {d}", where)
-        if r <= _DIM_TOL:
-            return make_tool(FlatEndMill, where, diameter=d, **common)
-        if abs(r - d / 2) <= _DIM_TOL * max(1.0, d):
-            return make_tool(BallEndMill, where, diameter=d, **common)
-        return make_tool(BullNoseEndMill, where, diameter=d, corner_radius=r, **common)
-    if r <= _DIM_TOL and abs(alpha) < 1e-9 and 0 < beta < 90:
-        if d > _DIM_TOL:
-            return make_tool(TaperedEndMill, where, diameter=d, taper_angle=beta, **common)
-        top = 2 * h * math.tan(math.radians(beta))
-        return make_tool(ChamferMill, where, diameter=top, taper_angle=beta, **common)
-    if r <= _DIM_TOL and abs(beta) < 1e-9 and 0 < alpha < 90:
-        if d <= _DIM_TOL:
-            raise ToolDefinitionError(f"cutter diameter must be > 0, got {d}", where)
-        return make_tool(ChamferMill, where, diameter=d, taper_angle=90.0 - alpha, **common)
-    if e is None or f is None:
-        cb = math.cos(math.radians(beta))
-        e = d / 2 - r * cb
-        ca = math.cos(math.radians(alpha))
-        if ca <= 0:
-            raise ToolDefinitionError(f"cutter bottom angle {alpha} must be below 90 degrees", where)
-        f = (r + e * math.sin(math.radians(alpha))) / ca
-    try:
-        params = AptParameters(d, r, e, f, alpha, beta, h)
-    except ToolDefinitionError as err:
-        raise ToolDefinitionError(
-            f"{err.reason} (neither an ISO 4343 cutter nor one of the named families)", where
-        ) from err
-    return make_tool(AptCutter, where, diameter=d, apt_parameters=params, **common)
-
-
-# --------------------------------------------------------------------------------------------------
-# lexing
-
-
-@dataclass(frozen=True)
-class _Record:
-    line: int  # first physical line of the logical record
-    major: str  # upper case, inner blanks collapsed: "GOTO", "TOOL PATH"
-    args: tuple[str, ...]
-    rest: str  # raw text after the slash (for PPRINT and messages)
-
-
-def _strip_comment(line: str) -> str:
-    """The line without its ``$$`` comment (a ``$$`` inside quotes is text)."""
-    quoted = False
-    i = 0
-    while i < len(line):
-        ch = line[i]
-        if ch == "'":
-            quoted = not quoted
-        elif ch == "$" and not quoted and line.startswith("$$", i):
-            return line[:i]
-        i += 1
-    return line
-
-
-def _split_args(rest: str) -> tuple[str, ...]:
-    out, cur, quoted = [], [], False
-    for ch in rest:
-        if ch == "'":
-            quoted = not quoted
-        if ch == "," and not quoted:
-            out.append("".join(cur).strip())
-            cur = []
-        else:
-            cur.append(ch)
-    out.append("".join(cur).strip())
-    return tuple(out)
-
-
-def _records(text: str) -> Iterator[_Record]:
-    pending: list[str] = []
-    first_line = 0
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        body = _strip_comment(raw).rstrip()
-        if not pending:
-            first_line = lineno
-        if body.endswith("$"):  # continuation: the record goes on on the next line
-            pending.append(body[:-1])
-            continue
-        pending.append(body)
-        logical = " ".join(p.strip() for p in pending).strip()
-        pending = []
-        if logical:
-            yield _parse_record(logical, first_line)
-    if pending:
-        logical = " ".join(p.strip() for p in pending).strip()
-        if logical:
-            yield _parse_record(logical, first_line)
-
-
-def _parse_record(text: str, line: int) -> _Record:
-    if "/" in text:
-        major, rest = text.split("/", 1)
-        args = _split_args(rest)
-    else:
-        major, rest, args = text, "", ()
-    major = " ".join(major.split()).upper()
-    return _Record(line, major, args, rest)
-
-
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eEdD][+-]?\d+)?")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -339,7 +124,7 @@ _FEED_UNITS = {"MMPM": (1.0, False), "IPM": (MM_PER_INCH, False), "MMPR": (1.0, 
 
 @dataclass
 class _PendingArc:
-    rec: _Record
+    rec: Record
     center: Point
     axis: tuple[float, float, float]
     radius: float | None
@@ -349,7 +134,7 @@ class _PendingArc:
 
 @dataclass
 class _Cycle:
-    rec: _Record
+    rec: Record
     feed: float  # mm/min or mm/rev as stated (scaled)
     per_rev: bool
     clearance: float  # mm, absolute
@@ -399,7 +184,7 @@ class _AptReader:
         self.nx_marker: int | None = None  # line of the first NX-only record (see apt_arcs.nx_marker_line)
 
     # -- small utilities ---------------------------------------------------------------------------
-    def where(self, rec: _Record) -> SourceLocation:
+    def where(self, rec: Record) -> SourceLocation:
         return SourceLocation(self.file, rec.line)
 
     def warn_once(self, key: str, message: str) -> None:
@@ -407,13 +192,13 @@ class _AptReader:
             self._warned.add(key)
             self.warnings.append(message)
 
-    def num(self, rec: _Record, token: str, what: str) -> float:
+    def num(self, rec: Record, token: str, what: str) -> float:
         t = token.strip()
-        if not _NUMBER.fullmatch(t):
+        if not NUMBER.fullmatch(t):
             raise InputError(f"{rec.major}: expected a number for {what}, got {token.strip()!r}", self.where(rec))
         return finite(float(t.replace("D", "E").replace("d", "e")), what, self.where(rec))
 
-    def fields(self, rec: _Record) -> list[str]:
+    def fields(self, rec: Record) -> list[str]:
         """The record's comma-separated fields; a trailing empty one is tolerated, inner ones are not."""
         args = list(rec.args)
         if args and args[-1] == "":
@@ -422,19 +207,19 @@ class _AptReader:
             raise InputError(f"{rec.major}: empty field in {rec.rest.strip()!r}", self.where(rec))
         return args
 
-    def nums(self, rec: _Record, tokens: tuple[str, ...] | list[str], what: str) -> list[float]:
+    def nums(self, rec: Record, tokens: tuple[str, ...] | list[str], what: str) -> list[float]:
         return [self.num(rec, t, what) for t in tokens]
 
     @staticmethod
     def is_number(token: str) -> bool:
-        return bool(_NUMBER.fullmatch(token.strip()))
+        return bool(NUMBER.fullmatch(token.strip()))
 
     def length(self, value: float) -> float:
         return value * self.s.scale
 
     # -- driver ------------------------------------------------------------------------------------
     def run(self, text: str) -> Toolpath:
-        handlers: dict[str, Callable[[_Record], None]] = {
+        handlers: dict[str, Callable[[Record], None]] = {
             "UNITS": self.on_units, "FEDRAT": self.on_fedrat, "RAPID": self.on_rapid, "GOTO": self.on_goto,
             "FROM": self.on_from, "GODLTA": self.on_godlta, "GOHOME": self.on_gohome, "TLAXIS": self.on_tlaxis,
             "MOVARC": self.on_movarc, "CIRCLE": self.on_circle, "CUTTER": self.on_cutter, "TLDATA": self.on_tldata,
@@ -444,7 +229,7 @@ class _AptReader:
             "NURBS": self.on_nurbs, "KNOT": self.on_nurbs,
         }
         self.nx_marker = nx_marker_line(text)
-        for rec in _records(text):
+        for rec in records(text):
             if "=" in rec.major or "(" in rec.major:
                 raise InputError(
                     f"{rec.major!r} looks like APT part-program source (a definition), not CL data", self.where(rec)
@@ -488,7 +273,7 @@ class _AptReader:
         return Toolpath(tuple(self.moves), dict(self.registry.tools), tuple(self.warnings), self.file)
 
     # -- motion ------------------------------------------------------------------------------------
-    def current_tool(self, rec: _Record) -> int | None:
+    def current_tool(self, rec: Record) -> int | None:
         s = self.s
         if s.cutter is None:
             if s.tool_number is not None and s.tool_number not in self._unknown_tool_warned:
@@ -503,7 +288,7 @@ class _AptReader:
             self._tool_cache[key] = self.registry.register(s.tool_number, tool, s.cutter.where)
         return self._tool_cache[key]
 
-    def feed_now(self, rec: _Record) -> float:
+    def feed_now(self, rec: Record) -> float:
         s = self.s
         if s.feed is None:
             raise InputError("feed move before any FEDRAT", self.where(rec))
@@ -513,7 +298,7 @@ class _AptReader:
             return s.feed * s.rpm
         return s.feed
 
-    def emit_linear(self, end: Point, rec: _Record, rapid: bool, feed: float | None = None) -> None:
+    def emit_linear(self, end: Point, rec: Record, rapid: bool, feed: float | None = None) -> None:
         s = self.s
         if s.pos is None:
             s.pos = end
@@ -535,7 +320,7 @@ class _AptReader:
         s.pos = end
         s.pprints.clear()
 
-    def point(self, rec: _Record, what: str = "GOTO") -> tuple[Point, tuple[float, float, float] | None]:
+    def point(self, rec: Record, what: str = "GOTO") -> tuple[Point, tuple[float, float, float] | None]:
         """(x, y, z) in mm and the tool axis if given, from a GOTO-like record."""
         args = self.fields(rec)
         if len(args) == 2:
@@ -556,7 +341,7 @@ class _AptReader:
             self.s.axes_read += 1
         return p, axis
 
-    def on_goto(self, rec: _Record) -> None:
+    def on_goto(self, rec: Record) -> None:
         s = self.s
         end, _ = self.point(rec)
         if s.arc is not None:
@@ -568,18 +353,18 @@ class _AptReader:
         rapid, s.rapid_next = s.rapid_next, False
         self.emit_linear(end, rec, rapid)
 
-    def on_rapid(self, rec: _Record) -> None:
+    def on_rapid(self, rec: Record) -> None:
         self.s.rapid_next = True
 
-    def on_from(self, rec: _Record) -> None:
+    def on_from(self, rec: Record) -> None:
         self.s.pos, _ = self.point(rec, "FROM")
 
-    def on_gohome(self, rec: _Record) -> None:
+    def on_gohome(self, rec: Record) -> None:
         end, _ = self.point(rec, "GOHOME")
         self.s.rapid_next = False
         self.emit_linear(end, rec, rapid=True)
 
-    def on_godlta(self, rec: _Record) -> None:
+    def on_godlta(self, rec: Record) -> None:
         if self.s.pos is None:
             raise InputError("GODLTA from an unknown position", self.where(rec))
         args = self.fields(rec)
@@ -595,7 +380,7 @@ class _AptReader:
         rapid, self.s.rapid_next = self.s.rapid_next, False
         self.emit_linear((end[0], end[1], end[2]), rec, rapid)
 
-    def on_tlaxis(self, rec: _Record) -> None:
+    def on_tlaxis(self, rec: Record) -> None:
         args = self.fields(rec)
         if len(args) < 3 or not all(self.is_number(a) for a in args[:3]):
             raise InputError("TLAXIS needs i, j, k", self.where(rec))
@@ -604,7 +389,7 @@ class _AptReader:
         self.s.axes_read += 1
 
     # -- arcs --------------------------------------------------------------------------------------
-    def on_movarc(self, rec: _Record) -> None:
+    def on_movarc(self, rec: Record) -> None:
         args = [a.upper() for a in self.fields(rec)]
         center = axis = None
         radius = sweep = None
@@ -641,7 +426,7 @@ class _AptReader:
             raise InputError("MOVARC needs CENTER and AXIS", self.where(rec))
         self.start_arc(rec, center, axis, radius, sweep)
 
-    def on_circle(self, rec: _Record) -> None:
+    def on_circle(self, rec: Record) -> None:
         """NX ``CIRCLE/x, y, z, i, j, k, r[, t, f, d, e][, TIMES, n]``: the axis assumes clockwise motion."""
         args = self.fields(rec)
         if len(args) < 7:
@@ -676,14 +461,14 @@ class _AptReader:
         axis = nx_circle_axis((v[3], v[4], v[5]))
         self.start_arc(rec, (v[0], v[1], v[2]), axis, v[6], None, extra_turns)
 
-    def on_nurbs(self, rec: _Record) -> None:
+    def on_nurbs(self, rec: Record) -> None:
         raise InputError(
             f"{rec.major} record: spline (NURBS) motion is not supported, and the program cannot run without "
             "it; output the operation as lines and arcs (NX: the operation's Motion Output Type)",
             self.where(rec),
         )
 
-    def start_arc(self, rec: _Record, center: Point, axis: tuple[float, float, float], radius: float | None,
+    def start_arc(self, rec: Record, center: Point, axis: tuple[float, float, float], radius: float | None,
                   sweep: float | None, extra_turns: int = 0) -> None:
         """Remember an arc statement (program units, ``axis`` counter-clockwise) until the GOTO of its end."""
         if self.s.cycle is not None:
@@ -716,7 +501,7 @@ class _AptReader:
         s.pprints.clear()
 
     # -- cycles ------------------------------------------------------------------------------------
-    def on_cycle(self, rec: _Record) -> None:
+    def on_cycle(self, rec: Record) -> None:
         args = [a.upper() for a in self.fields(rec)]
         if not args:
             raise InputError("CYCLE needs a type", self.where(rec))
@@ -773,7 +558,7 @@ class _AptReader:
             "(pecks, dwells and spindle reversal are not modelled)"
         )
 
-    def emit_cycle_point(self, bottom: Point, rec: _Record) -> None:
+    def emit_cycle_point(self, bottom: Point, rec: Record) -> None:
         cyc = self.s.cycle
         assert cyc is not None
         x, y, zb = bottom
@@ -794,7 +579,7 @@ class _AptReader:
         self.emit_linear((x, y, cyc.clearance), rec, rapid=True)
 
     # -- tools -------------------------------------------------------------------------------------
-    def new_cutter(self, rec: _Record, tool: MillingTool) -> None:
+    def new_cutter(self, rec: Record, tool: MillingTool) -> None:
         self._tokens += 1
         self.s.cutter = _Cutter(tool, self.where(rec), self._tokens)
         self.take_operation_name()
@@ -804,7 +589,7 @@ class _AptReader:
             self.s.operation = self.s.pprints[0]
             self.s.pprints.clear()
 
-    def on_cutter(self, rec: _Record) -> None:
+    def on_cutter(self, rec: Record) -> None:
         args = self.fields(rec)
         if not args or not all(self.is_number(a) for a in args):
             raise InputError("CUTTER needs numeric parameters d[, r[, e, f, alpha[, beta, h]]]", self.where(rec))
@@ -838,7 +623,7 @@ class _AptReader:
             )
         self.new_cutter(rec, tool)
 
-    def on_tldata(self, rec: _Record) -> None:
+    def on_tldata(self, rec: Record) -> None:
         args = self.fields(rec)
         kind = args[0].upper() if args else ""
         if kind != "MILL":
@@ -863,20 +648,20 @@ class _AptReader:
         # NX gives only the tool length: the whole of it is taken as fluted
         self.new_cutter(rec, cutter_from_parameters(d, r, alpha, beta, length, self.where(rec), e=e, f=f))
 
-    def tool_number_from(self, rec: _Record, token: str) -> int:
+    def tool_number_from(self, rec: Record, token: str) -> int:
         v = self.num(rec, token, "the tool number")
         if v != int(v) or v < 0:
             raise InputError(f"tool number must be a whole number >= 0, got {token.strip()!r}", self.where(rec))
         return int(v)
 
-    def on_loadtl(self, rec: _Record) -> None:
+    def on_loadtl(self, rec: Record) -> None:
         args = self.fields(rec)
         if not args:
             raise InputError("LOADTL needs a tool number", self.where(rec))
         self.s.tool_number = self.tool_number_from(rec, args[0])
         self.take_operation_name()
 
-    def on_load(self, rec: _Record) -> None:
+    def on_load(self, rec: Record) -> None:
         args = self.fields(rec)
         if len(args) < 2 or args[0].upper() != "TOOL":
             self.warn_once(f"load:{rec.rest}", f"{self.where(rec)}: {rec.major}/{rec.rest.strip()} ignored")
@@ -884,7 +669,7 @@ class _AptReader:
         self.s.tool_number = self.tool_number_from(rec, args[1])
         self.take_operation_name()
 
-    def on_spindl(self, rec: _Record) -> None:
+    def on_spindl(self, rec: Record) -> None:
         s = self.s
         words = [a.upper() for a in self.fields(rec)]
         if any(w in {"SFM", "SMM"} for w in words):
@@ -909,7 +694,7 @@ class _AptReader:
                 raise InputError(f"SPINDL: unexpected {w!r}", self.where(rec))
 
     # -- feeds, units, bookkeeping -----------------------------------------------------------------
-    def on_units(self, rec: _Record) -> None:
+    def on_units(self, rec: Record) -> None:
         word = rec.args[0].upper() if rec.args else ""
         if word in {"MM", "MILLIMETERS", "MILLIMETRES", "METRIC"}:
             self.s.scale = 1.0
@@ -920,7 +705,7 @@ class _AptReader:
         self.s.units_seen = True
         self.s.pprints.clear()  # header comments are not operation names
 
-    def on_fedrat(self, rec: _Record) -> None:
+    def on_fedrat(self, rec: Record) -> None:
         args = [a.upper() for a in self.fields(rec)]
         value = None
         unit, per_rev = self.s.scale, False
@@ -942,7 +727,7 @@ class _AptReader:
         self.s.feed = value * unit
         self.s.feed_per_rev = per_rev
 
-    def on_tool_path(self, rec: _Record) -> None:
+    def on_tool_path(self, rec: Record) -> None:
         args = list(rec.args)
         self.s.operation = args[0] if args else ""
         self.s.tool_name = ""
@@ -950,29 +735,29 @@ class _AptReader:
             self.s.tool_name = args[2]
         self.s.pprints.clear()
 
-    def on_end_of_path(self, rec: _Record) -> None:
+    def on_end_of_path(self, rec: Record) -> None:
         self.s.operation = ""
 
-    def on_pprint(self, rec: _Record) -> None:
+    def on_pprint(self, rec: Record) -> None:
         text = rec.rest.strip()
         if len(text) >= 2 and text[0] == text[-1] == "'":
             text = text[1:-1]
         if text:
             self.s.pprints.append(text.strip())
 
-    def on_mode(self, rec: _Record) -> None:
+    def on_mode(self, rec: Record) -> None:
         word = rec.args[0].upper() if rec.args else ""
         if word and word != "MILL":
             raise InputError(f"MODE/{word}: only milling programs are supported", self.where(rec))
 
-    def on_cutcom(self, rec: _Record) -> None:
+    def on_cutcom(self, rec: Record) -> None:
         words = {a.upper() for a in rec.args}
         if words & {"LEFT", "RIGHT"}:
             self.warn_once(
                 "cutcom", f"{self.where(rec)}: cutter compensation requested; CL points are read as tool-tip positions"
             )
 
-    def on_insert(self, rec: _Record) -> None:
+    def on_insert(self, rec: Record) -> None:
         self.warn_once("insert", f"{self.where(rec)}: INSERT (raw controller code) ignored")
 
 

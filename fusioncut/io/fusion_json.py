@@ -49,7 +49,8 @@ from typing import Annotated, Any, Literal
 from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, TypeAdapter, ValidationError
 
 from fusioncut.errors import FusionCutError, InputError, SourceLocation, ToolDefinitionError
-from fusioncut.io.apt import ToolRegistry, check_tool_axis, finite, solve_arc
+from fusioncut.io.apt_arcs import solve_arc
+from fusioncut.io.cutters import ToolRegistry, check_tool_axis, finite
 from fusioncut.model.units import MM_PER_INCH
 from fusioncut.io.tool_library import fusion_tool, pydantic_message
 from fusioncut.model.moves import ArcMove, LinearMove, Move, Point, Toolpath

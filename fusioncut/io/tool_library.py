@@ -45,7 +45,7 @@ from typing import Annotated, Any, Literal
 from pydantic import AllowInfNan, BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from fusioncut.errors import InputError, SourceLocation, ToolDefinitionError
-from fusioncut.io.apt import make_tool, read_source_text
+from fusioncut.io.cutters import make_tool, read_source_text
 from fusioncut.model.tools import ASSUMED_FLUTE_LENGTH_DIAMETERS
 from fusioncut.model.units import MM_PER_INCH
 from fusioncut.io.archive import read_member

@@ -9,7 +9,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fusioncut.errors import FusionCutError, InputError, SourceLocation, ToolDefinitionError
-from fusioncut.io.apt import cutter_from_parameters, read_apt, solve_arc
+from fusioncut.io.apt import read_apt
+from fusioncut.io.apt_arcs import solve_arc
+from fusioncut.io.cutters import cutter_from_parameters
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove
 from fusioncut.model.tools import (
     AptCutter,
