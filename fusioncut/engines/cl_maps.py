@@ -141,6 +141,11 @@ def engagement_map(cl: CL, outcome: CutOutcome, heights: list[SliceHeight], arcs
         warnings.append(f"rapid move cuts {outcome.removed:.4g} mm³ of material")
     if outcome.shank_area > 0:
         warnings.append("the shank touches the material")
+    if outcome.status == CLStatus.ENGAGED and outcome.z_range is None and outcome.removed > 0:
+        # Engagement is the contact of the tool at the CL's end; a segment that leaves the material
+        # (an exit, a ramp out of a pocket) removes material on its way and may end with none there.
+        warnings.append(f"removes {outcome.removed:.4g} mm³ along the segment but ends clear of the material: "
+                        "no engagement at the CL's end")
     common = dict(status=outcome.status, removed_volume=outcome.removed,
                   sweep_method=outcome.method.value if outcome.method else "",
                   reason=outcome.reason, warnings=tuple(warnings), timings_ms=tuple(outcome.timings.items()),
