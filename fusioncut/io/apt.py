@@ -82,8 +82,8 @@ from fusioncut.io.cutters import (
     check_tool_axis,
     cutter_from_parameters,
     finite,
-    read_source_text,
 )
+from fusioncut.io.text import read_source_text
 from fusioncut.model.moves import ArcMove, LinearMove, Move, Point, Toolpath
 from fusioncut.model.tools import (
     ASSUMED_FLUTE_LENGTH_DIAMETERS,

@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import replace
-from pathlib import Path
 
 from fusioncut.errors import InputError, SourceLocation, ToolDefinitionError
 from fusioncut.model.tools import (
@@ -27,27 +26,13 @@ from fusioncut.model.tools import (
     TaperedEndMill,
 )
 
-__all__ = ["MAX_ABS_VALUE", "ToolRegistry", "check_tool_axis", "cutter_from_parameters", "finite", "make_tool",
-           "read_source_text"]
+__all__ = ["MAX_ABS_VALUE", "ToolRegistry", "check_tool_axis", "cutter_from_parameters", "finite", "make_tool"]
 
 # Coordinates beyond a kilometre are garbage, not a machine; refusing them early keeps the arithmetic
 # (squares, trigonometry) away from overflow.
 MAX_ABS_VALUE = 1e6
 _AXIS_TOL = 1e-6  # tolerance on unit tool-axis components
 _DIM_TOL = 1e-6  # mm; dimensions closer than this are equal
-
-
-def read_source_text(path: str | Path) -> str:
-    """The file's text: UTF-8 (with or without BOM), else Windows-1252/Latin-1 as CAM posts on
-    Windows write it. Unreadable files raise :class:`InputError`."""
-    try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise InputError(f"cannot read the file: {e.strerror or e}", SourceLocation(str(path))) from e
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return data.decode("latin-1")
 
 
 def finite(value: float, what: str, where: SourceLocation) -> float:

@@ -51,10 +51,11 @@ from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, TypeAdapter, Va
 from fusioncut.errors import FusionCutError, InputError, SourceLocation, ToolDefinitionError
 from fusioncut.io.apt_arcs import solve_arc
 from fusioncut.io.cutters import ToolRegistry, check_tool_axis, finite
-from fusioncut.model.units import MM_PER_INCH
+from fusioncut.io.text import read_utf8_text
 from fusioncut.io.tool_library import fusion_tool, pydantic_message
 from fusioncut.model.moves import ArcMove, LinearMove, Move, Point, Toolpath
 from fusioncut.model.tools import MillingTool, SpindleDirection
+from fusioncut.model.units import MM_PER_INCH
 
 __all__ = ["read_fusion_json"]
 
@@ -531,13 +532,4 @@ def read_fusion_json(path: str | Path, *, skip_unsupported_tools: bool = False) 
     a warning names them. Every malformed input raises :class:`InputError` naming the file, the
     entry's line:column and its JSON path.
     """
-    file = str(path)
-    try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise InputError(f"cannot read the file: {e.strerror or e}", SourceLocation(file)) from e
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise InputError(f"not UTF-8 text (byte {e.start})", SourceLocation(file)) from e
-    return _JsonReader(file, skip_unsupported_tools).run(text)
+    return _JsonReader(str(path), skip_unsupported_tools).run(read_utf8_text(path))

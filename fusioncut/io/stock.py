@@ -105,21 +105,8 @@ def _cutting_radius(tool: MillingTool) -> float:
 
 def _extent(move: Move) -> tuple[list[float], list[float]]:
     """Exact axis-aligned bounds (lo, hi) of a move's tool-tip path."""
-    pts = [move.start, move.end]
-    if isinstance(move, ArcMove):
-        a, b, _ = move.plane.axes
-        a0 = math.atan2(move.start[b] - move.center[b], move.start[a] - move.center[a])
-        sweep = move.sweep
-        # the path's extremes in the plane are where it crosses a multiple of 90 degrees
-        lo_k = math.ceil(min(a0, a0 + sweep) / (math.pi / 2))
-        hi_k = math.floor(max(a0, a0 + sweep) / (math.pi / 2))
-        for k in range(lo_k, min(hi_k, lo_k + 8) + 1):
-            t = (k * math.pi / 2 - a0) / sweep
-            if 0.0 <= t <= 1.0:
-                pts.append(move.point_at(t))
-    lo = [min(p[i] for p in pts) for i in range(3)]
-    hi = [max(p[i] for p in pts) for i in range(3)]
-    return lo, hi
+    lo, hi = move.bounds
+    return list(lo), list(hi)
 
 
 def _is_sideways_level(move: Move) -> bool:

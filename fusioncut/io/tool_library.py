@@ -45,13 +45,13 @@ from typing import Annotated, Any, Literal
 from pydantic import AllowInfNan, BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from fusioncut.errors import InputError, SourceLocation, ToolDefinitionError
-from fusioncut.io.cutters import make_tool, read_source_text
-from fusioncut.model.tools import ASSUMED_FLUTE_LENGTH_DIAMETERS
-from fusioncut.model.units import MM_PER_INCH
 from fusioncut.io.archive import read_member
+from fusioncut.io.cutters import make_tool
 from fusioncut.io.json_input import parse_json
+from fusioncut.io.text import read_source_text, read_utf8_text
 from fusioncut.model.stock import BoxStock
 from fusioncut.model.tools import (
+    ASSUMED_FLUTE_LENGTH_DIAMETERS,
     AptCutter,
     AptParameters,
     BallEndMill,
@@ -63,6 +63,7 @@ from fusioncut.model.tools import (
     SpindleDirection,
     TaperedEndMill,
 )
+from fusioncut.model.units import MM_PER_INCH
 
 __all__ = ["ToolLibrary", "LibraryEntry", "CamoticsProject", "fusion_tool", "read_tool_library",
            "read_camotics_project"]
@@ -581,7 +582,7 @@ def read_tool_library(path: str | Path, *, tbl_units: Literal["mm", "inch"] = "m
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix == ".json":
-        return _fusion_library_from_text(_read_json_text(p), str(p))
+        return _fusion_library_from_text(read_utf8_text(p), str(p))
     if suffix == ".tools":
         return _read_tools_archive(p)
     if suffix == ".tbl":
@@ -589,17 +590,6 @@ def read_tool_library(path: str | Path, *, tbl_units: Literal["mm", "inch"] = "m
             raise InputError(f"tbl_units must be 'mm' or 'inch', got {tbl_units!r}", SourceLocation(str(p)))
         return _read_tbl(p, tbl_units)
     raise InputError(f"unknown tool library type {p.suffix!r} (expected .json, .tools or .tbl)", SourceLocation(str(p)))
-
-
-def _read_json_text(p: Path) -> str:
-    try:
-        data = p.read_bytes()
-    except OSError as e:
-        raise InputError(f"cannot read the file: {e.strerror or e}", SourceLocation(str(p))) from e
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise InputError(f"not UTF-8 text (byte {e.start})", SourceLocation(str(p))) from e
 
 
 # --------------------------------------------------------------------------------------------------
@@ -679,7 +669,7 @@ def read_camotics_project(path: str | Path) -> CamoticsProject:
     the program files it names. Missing programs are reported in the warnings, not raised."""
     p = Path(path)
     file = str(p)
-    text = _read_json_text(p)
+    text = read_utf8_text(p)
     if text.lstrip().startswith("<"):
         raise InputError("XML CAMotics projects are not supported (re-save as .camotics JSON)", SourceLocation(file))
     try:
