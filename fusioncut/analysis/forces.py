@@ -71,8 +71,8 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from fusioncut.analysis.result_maps import (  # noqa: F401 - infer_slice_height: its importers move with it
-    engagement_maps_from_results, infer_slice_height, results_slice_height,
+from fusioncut.analysis.result_maps import (
+    engagement_maps_from_results, results_slice_height,
 )
 from fusioncut.errors import GeometryError, InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap, SliceEngagement

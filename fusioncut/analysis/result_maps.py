@@ -6,8 +6,8 @@ the engine's band ``[k, k+1) * dz`` clipped to the flute contact). :func:`engage
 turns the rows back into :class:`~fusioncut.model.engagement.EngagementMap` s whose axial contact range
 spans the recorded bands, so :func:`fusioncut.analysis.forces.compute_cl_forces` with the recorded slice
 height (:func:`results_slice_height`) rebuilds the engine's bands exactly. Folders written before the
-slice height and bands were recorded take the slice height given (else :func:`infer_slice_height`
-guesses it, for such folders only); their bands come from the engine's slice rule inverted.
+slice height and bands were recorded need the slice height given (nothing is guessed); their bands
+come from the engine's slice rule inverted.
 """
 from __future__ import annotations
 
@@ -24,59 +24,14 @@ if TYPE_CHECKING:  # the tables' reader brings pandas; the maps need only what i
     from fusioncut.io.results import Results
 
 
-def infer_slice_height(results: object) -> float:
-    """The engine's slice height (mm) behind a results directory written before it was recorded
-    (:attr:`Results.slice_height` is ``None``); folders that record it are never guessed at.
-
-    The engine puts a slice in the middle of the part of its cell ``[k dz, (k+1) dz]`` in contact, so
-    with the right ``dz`` the rebuilt axial range of every CL with two or more slices (see
-    :func:`engagement_maps_from_results`) spans exactly its ``ap``. The candidates are the gaps
-    between neighbouring slices of a CL and twice the lowest slice height (a CL cutting from the tip
-    has its lowest slice at ``dz / 2``); the one that explains the most CLs wins (ties: the most
-    frequent). Without any CL of two or more slices every CL is a single band and any height at least
-    as large as every slice's reach serves; that is returned then.
-    """
-    sl = results.slices  # type: ignore[attr-defined]
-    cl = results.cl  # type: ignore[attr-defined]
-    z = sl[["cl", "z_tool_mm"]].drop_duplicates().sort_values(["cl", "z_tool_mm"])
-    per = z.groupby("cl")["z_tool_mm"].agg(["min", "max", "count"])
-    multi = per[per["count"] >= 2]
-    if not len(multi):
-        reach = float(z["z_tool_mm"].max()) if len(z) else 0.0
-        ap = float(cl["ap_mm"].max()) if len(cl) else 0.0
-        return max(1.0, 2.0 * (reach + ap) + 1.0)
-    gaps = z.groupby("cl")["z_tool_mm"].diff().dropna()
-    cands = _candidate_counts([gaps[gaps > 1e-9], 2.0 * multi["min"]])
-    ap = cl.drop_duplicates("cl", keep="last").set_index("cl")["ap_mm"].reindex(multi.index).to_numpy(dtype=float)
-    z0, z1 = multi["min"].to_numpy(dtype=float), multi["max"].to_numpy(dtype=float)
-    best, best_key = None, (-1, -1)
-    for dz, freq in cands[:20]:
-        k0, k1 = np.floor(z0 / dz + 1e-9), np.floor(z1 / dz + 1e-9)
-        a0 = np.maximum(k0 * dz, 2 * z0 - (k0 + 1) * dz)
-        a1 = np.minimum((k1 + 1) * dz, 2 * z1 - k1 * dz)
-        key = (int(np.count_nonzero(np.abs((a1 - a0) - ap) < 1e-6)), freq)
-        if key > best_key:
-            best, best_key = dz, key
-    return float(best)  # type: ignore[arg-type]
-
-
-def _candidate_counts(parts: list) -> list[tuple[float, int]]:
-    """Distinct values (rounded to 1 nm) of the given series with their counts, most frequent first."""
-    counts: dict[float, int] = {}
-    for part in parts:
-        for v in np.round(np.asarray(part, dtype=float), 6):
-            counts[float(v)] = counts.get(float(v), 0) + 1
-    return sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))
-
-
 def results_slice_height(results: Results, dz: float | None = None) -> float:
     """The engine's slice height (mm) of ``results``: the recorded one (:attr:`Results.slice_height`).
     ``dz`` (mm) is for folders written before it was recorded; given where it is recorded, it must
-    agree. An older folder without ``dz`` falls back to :func:`infer_slice_height`."""
+    agree. An older folder without ``dz`` is an :class:`InputError` asking for it."""
     if dz is not None and not (dz > 0 and math.isfinite(dz)):
         raise InputError(f"slice height must be > 0 mm, got {dz}", results.path)
     if results.slice_height is None:
-        return infer_slice_height(results) if dz is None else float(dz)
+        return results.require_slice_height() if dz is None else float(dz)
     if dz is not None and abs(dz - results.slice_height) > 1e-9 * max(1.0, dz):
         raise InputError(f"the results were computed with slice height {results.slice_height:g} mm, not {dz:g} mm "
                          "(leave --slice-height out)", results.path)

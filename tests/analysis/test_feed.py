@@ -16,11 +16,11 @@ from fusioncut.analysis.forces import (
     CuttingCoefficients,
     compute_cl_forces,
     engagement_maps_from_results,
-    infer_slice_height,
     peak_chip_thickness,
 )
 from fusioncut.analysis.materials import AL7075_T6_CARBIDE as K
 from fusioncut.errors import InputError, SourceLocation
+from fusioncut.model.options import EngineOptions
 from fusioncut.io.results import ResultWriter, load_results
 from fusioncut.model import (
     AngleInterval,
@@ -337,11 +337,11 @@ def test_advice_from_saved_results_equals_advice_from_maps(tmp_path):
                              removed_volume=1.0)
 
     maps = [engine_cl(i, arc) for i, arc in enumerate([(0.0, 180.0), (20.0, 180.0), (90.0, 180.0)], start=1)]
-    with ResultWriter(tmp_path) as w:
+    with ResultWriter(tmp_path, options=EngineOptions(slice_height=1.0)) as w:
         for m in maps:
             w.add(m)
     results = load_results(tmp_path)
-    assert infer_slice_height(results) == 1.0
+    assert results.slice_height == 1.0
     rebuilt = engagement_maps_from_results(results)
     assert [m.axial_range for m in rebuilt] == [pytest.approx((0.0, 2.5))] * 3
     lim = FeedLimit(max_force=600.0, max_feed=1e6)
@@ -354,7 +354,6 @@ def test_advice_from_saved_results_equals_advice_from_maps(tmp_path):
 def test_advice_from_results_uses_their_recorded_speeds_and_slice_height(tmp_path):
     """A folder recording each CL's spindle speed and the slice height needs neither: the advice equals
     the advice of the maps with those speeds; a slice height that disagrees is refused."""
-    from fusioncut.engines.base import EngineOptions
 
     maps = [cl(i, (arc,)) for i, arc in enumerate([(0.0, 180.0), (20.0, 180.0), (90.0, 180.0)], start=1)]
     speeds = [6000.0, 9000.0, None]

@@ -194,6 +194,8 @@ def test_forces_of_an_older_folder_need_what_it_lacks(run, tmp_path):
         forces_from_results(old, K)
     with pytest.raises(InputError, match=r"tool T1: metadata.json has no full record of it"):
         forces_from_results(old, K, rpm=RPM, dz=SLICE)
+    with pytest.raises(InputError, match=r"--slice-height"):  # never guessed from the slices
+        forces_from_results(old, K, rpm=RPM, tools={"T1": full.tools[1]})
     got = forces_from_results(old, K, rpm=RPM, tools={"T1": full.tools[1]}, dz=SLICE)
     want = forces_from_results(load_results(out), K, rpm=RPM)
     pd.testing.assert_frame_equal(got, want, rtol=1e-12, atol=1e-9)
@@ -338,7 +340,7 @@ def test_whole_program_forces_and_advice(tmp_path, cli_app):
 
 def test_cli_forces_need_no_program(run, cli_app, tmp_path):
     """``fusioncut forces RESULTS`` alone takes the recorded speeds, tools and slice height: the table
-    is the one ``--program`` gives; an older folder without speeds asks for ``--rpm`` (exit 2, no
+    is the one ``--program`` gives; an older folder asks for the slice height, then the speeds (exit 2, no
     traceback); ``--flutes`` overrides the recorded tool."""
     _, maps, shared = run
     out = _copy(shared, tmp_path)
@@ -352,6 +354,8 @@ def test_cli_forces_need_no_program(run, cli_app, tmp_path):
     pd.testing.assert_frame_equal(alone, with_program, check_exact=True)
     old = _as_older_folder(shared, tmp_path / "old")
     r = CliRunner().invoke(cli_app, ["forces", str(old), "--no-plot"])
+    assert r.exit_code == 2 and "--slice-height" in r.output and "Traceback" not in r.output
+    r = CliRunner().invoke(cli_app, ["forces", str(old), "--slice-height", str(SLICE), "--no-plot"])
     assert r.exit_code == 2 and "--rpm" in r.output and "Traceback" not in r.output
     r = CliRunner().invoke(cli_app, ["forces", str(out), "--rpm", str(RPM), "--no-plot"])
     assert r.exit_code == 0, r.output

@@ -475,7 +475,7 @@ def test_stability_command(tmp_path) -> None:
 
 @pytest.mark.skipif(not PROGRAM.exists(), reason="shared test data not available")
 def test_real_program_limits_from_saved_tables(run) -> None:
-    from fusioncut.analysis.forces import engagement_maps_from_results, infer_slice_height
+    from fusioncut.analysis.forces import engagement_maps_from_results, results_slice_height
     from fusioncut.analysis.stability import stability_table
     from fusioncut.io.results import load_results
     from test_forces_real_program import SLICE, _is_slot
@@ -486,7 +486,7 @@ def test_real_program_limits_from_saved_tables(run) -> None:
     rpm = [5000.0] * len(maps)
     direct = stability_table(maps, t, COEF, iso, rpm, dz=SLICE, sd=False)
     results = load_results(out)
-    dz = infer_slice_height(results)
+    dz = results_slice_height(results)
     assert dz == SLICE
     rebuilt = stability_table(engagement_maps_from_results(results, dz), t, COEF, iso, rpm, dz=dz, sd=False)
     for col in ("a_lim_zoa_mm", "margin", "nearest_stable_rpm", "ap_mm"):

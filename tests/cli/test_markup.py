@@ -49,7 +49,8 @@ def test_forces_and_stability_print_bracketed_folders_literally(tmp_path: Path) 
 
     res = tmp_path / "res[v2]"
     _results(res)
-    r = CliRunner().invoke(app, ["forces", str(res), "--rpm", "9000", "--no-plot"], env={"COLUMNS": "400"})
+    r = CliRunner().invoke(app, ["forces", str(res), "--rpm", "9000", "--slice-height", "0.5", "--no-plot"],
+                           env={"COLUMNS": "400"})
     assert r.exit_code == 0, r.output
     assert f"in {res}" in r.output.replace("\n", "")
     modes = Path(__file__).parents[2] / "docs" / "stability_modes_example.json"
