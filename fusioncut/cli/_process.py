@@ -12,7 +12,7 @@ from typing import Any, Optional
 from rich.console import Console
 from rich.markup import escape
 
-console = Console()
+console = Console(soft_wrap=True)  # messages name paths: the terminal wraps them, rich does not break them
 
 
 @dataclasses.dataclass

@@ -29,7 +29,7 @@ from fusioncut.cli._errors import friendly_errors
 from fusioncut.cli._process import (_COEFFICIENTS_HELP, _MATERIAL_HELP, _coefficients, _rpm_range, _setup, _Setup,
                                    _tool_dynamics, _tool_info, _write_table)
 
-console = Console()
+console = Console(soft_wrap=True)  # messages name paths: the terminal wraps them, rich does not break them
 
 
 def _fmt(value: float, digits: int = 4) -> str:

@@ -11,7 +11,7 @@ from rich.markup import escape
 
 from fusioncut.cli._errors import friendly_errors
 
-console = Console()
+console = Console(soft_wrap=True)  # messages name paths: the terminal wraps them, rich does not break them
 
 
 class PlotKind(str, Enum):
