@@ -54,6 +54,8 @@ def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
     for j in range(C.shape[0]):
         if px < CB[j, 0] - eps or px > CB[j, 2] + eps or py < CB[j, 1] - eps or py > CB[j, 3] + eps:
             continue
+        if C[j, 3] > pz + eps and C[j, 6] > pz + eps:
+            continue  # the whole sweep is above the point
         k = int(C[j, 12])
         if sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) <= pz + eps:
             return False
@@ -182,6 +184,8 @@ def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
             return m
         if px < CB[j, 0] - eps or px > CB[j, 2] + eps or py < CB[j, 1] - eps or py > CB[j, 3] + eps:
             continue
+        if C[j, 3] - eps - pz >= m and C[j, 6] - eps - pz >= m:
+            continue  # its lower surface is nowhere below its path's lowest tip
         k = int(C[j, 12])
         h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) - eps - pz
         if h < m:

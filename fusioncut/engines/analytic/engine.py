@@ -13,7 +13,9 @@ and holder do). Nothing is built or kept but the sweeps themselves (one row each
   engine does (:func:`fusioncut.engines.brep.engine.slice_heights`, ``engagement_map``), so the
   output is the same :class:`~fusioncut.model.engagement.EngagementMap` per CL;
 * the flute contact's height range (``ap``) is bracketed on heights every quarter slice and at
-  the heights of the stock's top and the earlier sweeps' ends, then bisected to 1e-10 mm.
+  the heights of the stock's top and the earlier sweeps' ends, then bisected to 1e-10 mm;
+* the earlier sweeps near the CL come from a grid index of their footprints, where the CLs of one
+  move are one sweep (:class:`.index.SweepIndex`).
 
 Since the workpiece before a CL follows from the path alone, :meth:`AnalyticEngine.process` can
 start at any CL: the sweeps before it are indexed, not evaluated.
@@ -32,7 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from fusioncut.engines.analytic.contact import slice_arcs, slice_touches
+from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_touches
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
 from fusioncut.engines.analytic.sweeps import arc_row, line_row
@@ -47,7 +49,6 @@ from fusioncut.model.tools import MillingTool
 
 WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts as cut (zero-thickness walls)
 VOLUME_EPS = 1e-12  # mm³: a CL removing less is idle (air, or a rapid through air)
-N_SCAN = 720  # angles per slice scanned before bisection (contact.slice_arcs)
 N_TOUCH = 360  # angles per height scanned for the contact's height range
 Z_TOL = 1e-10  # mm: the contact's height range
 
@@ -114,7 +115,7 @@ class AnalyticEngine:
         row, box, z_low = sweep_row(move, profile, self._tools.index_of(profile))
         stock = np.array(self.stock)
         near = index.near((box[0] - WALL_EPS, box[1] - WALL_EPS, box[2] + WALL_EPS, box[3] + WALL_EPS),
-                                z_max=self.stock[5])
+                          z_max=self.stock[5])
         C, CB = index.rows[near], index.boxes[near]
         PP, NPC, RR = self._tools.profiles, self._tools.counts, self._tools.radii
         t1 = time.perf_counter()

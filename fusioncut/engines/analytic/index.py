@@ -68,6 +68,25 @@ class SweepIndex:
                 range(math.floor(box[1] / s), math.floor(box[3] / s) + 1))
 
     def add(self, row: np.ndarray, box: tuple[float, float, float, float], z_low: float) -> int:
+        """Store a sweep; one that continues the last one (:func:`continues`) is merged into it, so
+        a move cut into many CLs stays one sweep (the union of the pieces' sweeps is the sweep of
+        their joined path: the lower surface is a minimum over the path). The row's index."""
+        if self.size and continues(self.rows[self.size - 1], row):
+            k = self.size - 1
+            last = self.rows[k]
+            last[4:7] = row[4:7]
+            last[11] += row[11]
+            b = self.boxes[k]
+            box = (min(b[0], box[0]), min(b[1], box[1]), max(b[2], box[2]), max(b[3], box[3]))
+            self.boxes[k] = box
+            self.z_low[k] = min(self.z_low[k], z_low)
+            xs, ys = self._bin_range(box)
+            for i in xs:
+                for j in ys:
+                    cell = self._bins[(i, j)]
+                    if not cell or cell[-1] != k:
+                        cell.append(k)
+            return k
         if self.size == self.rows.shape[0]:
             grow = self.rows.shape[0]
             self.rows = np.concatenate([self.rows, np.zeros((grow, NCOL))])
@@ -100,3 +119,26 @@ class SweepIndex:
         keep = ((b[:, 0] <= box[2]) & (b[:, 2] >= box[0]) & (b[:, 1] <= box[3]) & (b[:, 3] >= box[1])
                 & (self.z_low[found] < z_max))
         return found[keep]
+
+
+def continues(last: np.ndarray, row: np.ndarray) -> bool:
+    """Whether sweep ``row`` carries on along ``last``'s path: same tool, starting where it ended
+    (1e-12 mm), a line in the same direction or an arc about the same centre with the same radius,
+    sense and pitch (rise per radian), to 1e-12 relative."""
+    if last[0] != row[0] or last[12] != row[12]:
+        return False
+    if abs(last[4] - row[1]) > 1e-12 or abs(last[5] - row[2]) > 1e-12 or abs(last[6] - row[3]) > 1e-12:
+        return False
+    if row[0] == 0.0:
+        u, v = last[4:7] - last[1:4], row[4:7] - row[1:4]
+        nu, nv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+        if nu == 0.0 or nv == 0.0:
+            return False
+        return bool(np.linalg.norm(np.cross(u, v)) <= 1e-12 * nu * nv and u.dot(v) > 0)
+    if last[7] != row[7] or last[8] != row[8] or abs(last[9] - row[9]) > 1e-12 * max(1.0, last[9]):
+        return False
+    if last[11] * row[11] <= 0:
+        return False
+    pitch_a = (last[6] - last[3]) / last[11]
+    pitch_b = (row[6] - row[3]) / row[11]
+    return abs(pitch_a - pitch_b) <= 1e-12 * max(1.0, abs(pitch_a))

@@ -52,6 +52,8 @@ def removed_height(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
     for j in range(C.shape[0]):
         if px < CB[j, 0] or px > CB[j, 2] or py < CB[j, 1] or py > CB[j, 3]:
             continue
+        if C[j, 3] >= high and C[j, 6] >= high:
+            continue  # its lower surface is nowhere below its path's lowest tip
         k = int(C[j, 12])
         h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, 0.0)
         if h < high:

@@ -1,0 +1,58 @@
+"""The sweep index: the CLs of one move merge into one sweep with the same lower surface; a query meets
+the sweeps whose footprint box overlaps it."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from fusioncut.engines.analytic.index import SweepIndex, continues
+from fusioncut.engines.analytic.profile import lower_profile
+from fusioncut.engines.analytic.sweeps import arc_row, line_row, sweep_lower
+from fusioncut.model.tools import BallEndMill
+
+BALL = lower_profile(BallEndMill(6, 20))
+
+
+def helix_piece(a0, a1, z0, z1, c=(1.0, 2.0), rho=4.0):
+    p = lambda a, z: (c[0] + rho * math.cos(a), c[1] + rho * math.sin(a), z)  # noqa: E731
+    return arc_row(p(a0, z0), p(a1, z1), c, rho, a0, a1 - a0, 0)
+
+
+def box(row, R=3.0):
+    xs, ys = [row[1], row[4]], [row[2], row[5]]
+    if row[0] == 1.0:
+        xs += [row[7] - row[9], row[7] + row[9]]
+        ys += [row[8] - row[9], row[8] + row[9]]
+    return (min(xs) - R, min(ys) - R, max(xs) + R, max(ys) + R)
+
+
+@pytest.mark.parametrize("pieces", [
+    [line_row((0, 0, 0), (2, 1, -0.5), 0), line_row((2, 1, -0.5), (6, 3, -1.5), 0)],
+    [helix_piece(0.0, 1.0, 0.0, -0.2), helix_piece(1.0, 2.5, -0.2, -0.5), helix_piece(2.5, 7.0, -0.5, -1.4)],
+])
+def test_pieces_of_one_move_merge_into_their_joined_sweep(pieces):
+    index = SweepIndex(5.0)
+    for row in pieces:
+        index.add(row.copy(), box(row), min(row[3], row[6]))
+    assert index.size == 1
+    merged = index.rows[0]
+    rng = np.random.default_rng(3)
+    for px, py in rng.uniform(-8, 10, (300, 2)):
+        expected = min(sweep_lower(r, BALL.pieces, BALL.radius, px, py, 0.0) for r in pieces)
+        got = sweep_lower(merged, BALL.pieces, BALL.radius, px, py, 0.0)
+        assert got == pytest.approx(expected, abs=1e-11) or (math.isinf(got) and math.isinf(expected))
+        if not math.isinf(got):
+            assert list(index.near((px, py, px, py))) == [0]
+
+
+def test_sweeps_that_do_not_carry_on_stay_apart():
+    a = line_row((0, 0, 0), (2, 0, 0), 0)
+    assert not continues(a, line_row((2, 0, 0), (0, 0, 0), 0))  # back along the same line
+    assert not continues(a, line_row((2, 0, 0), (4, 0.1, 0), 0))  # a corner
+    assert not continues(a, line_row((2, 0, 0), (4, 0, 0), 1))  # another tool
+    h = helix_piece(0.0, 1.0, 0.0, -0.2)
+    assert not continues(h, helix_piece(1.0, 2.0, -0.2, -0.3))  # another pitch
+    assert not continues(h, helix_piece(1.0, 2.0, -0.2, -0.4, rho=4.5))  # another radius
+    assert continues(h, helix_piece(1.0, 2.0, -0.2, -0.4))
