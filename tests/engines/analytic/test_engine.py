@@ -121,6 +121,7 @@ def test_ball_ramp_engages_beyond_the_front_half_by_the_slope():
         assert_same_intervals(intervals(s), [(90.0 - half, 90.0 + half)], ANGLE_TOL)
 
 
+@pytest.mark.slow  # tens of seconds: the volume integral on ramps and helices is not fast yet
 def test_ball_going_up_a_ramp_touches_from_where_its_front_begins():
     """A ball rising at angle a: the end sphere's front is the half facing the motion, whose lowest
     point is R (1 - cos a) above the tip; the contact reaches up to the stock's top. (The B-Rep engine
@@ -134,6 +135,7 @@ def test_ball_going_up_a_ramp_touches_from_where_its_front_begins():
     assert maps[-1].axial_range == pytest.approx((R * (1 - math.cos(a)), -end[2]), abs=1e-9)
 
 
+@pytest.mark.slow  # tens of seconds: the volume integral on ramps and helices is not fast yet
 def test_split_ramp_removes_what_the_whole_ramp_removes():
     """Volumes add up: a ball ramp cut into 8 CLs removes what it removes as one CL (1e-7)."""
     tool = BallEndMill(6, 20)
@@ -145,6 +147,7 @@ def test_split_ramp_removes_what_the_whole_ramp_removes():
     assert sum(m.removed_volume for m in split) == pytest.approx(whole[0].removed_volume, rel=VOLUME_REL)
 
 
+@pytest.mark.slow  # tens of seconds: the volume integral on ramps and helices is not fast yet
 def test_helical_bore_removes_the_closed_form_pocket():
     """A flat end mill (R 6) down a helix of radius 4 (1.75 turns to 3 mm deep), then one level turn:
     the pocket is the cylinder of radius 10, 3 mm deep. The helix is swept exactly, not in steps."""
@@ -183,6 +186,7 @@ def test_a_wall_only_grazed_is_no_engagement():
     assert last.removed_volume == pytest.approx(10 * 20 * 3 - 75, rel=VOLUME_REL)
 
 
+@pytest.mark.slow  # tens of seconds: the volume integral on ramps and helices is not fast yet
 def test_starting_at_a_later_cl_gives_the_same_maps():
     """The workpiece before a CL follows from the path: CLs 5.. alone equal CLs 5.. of a whole run."""
     tool = BallEndMill(6, 20)
