@@ -21,8 +21,11 @@ convention:
    above it are entries through air. Programs that post rapids as feed moves (Fusion for Personal
    Use) defeat this rule: pass ``top``.
 
-If the rule leaves nothing below the top (a single facing pass at the top level) the depth of cut is
-unknowable and :class:`InputError` asks for ``top``. The result is marked ``inferred=True``.
+4. if that leaves nothing below the top (every cut at one level: a facing pass), the program faces the
+   part's top at that level and the depth of cut is not in the program: the top is taken
+   :data:`FACING_ALLOWANCE` above it (the stock-top offset CAM setups add by default), and the rule
+   says so, asking for ``top`` when the real allowance differs.
+The result is marked ``inferred=True``.
 """
 from __future__ import annotations
 
@@ -34,9 +37,10 @@ from fusioncut.model.moves import ArcMove, Move, Toolpath
 from fusioncut.model.stock import BoxStock, CylinderStock, SolidStock, Stock
 from fusioncut.model.tools import MillingTool, ProfileArc
 
-__all__ = ["infer_stock", "parse_stock", "solid_stock", "stock_top", "DEFAULT_MARGIN"]
+__all__ = ["infer_stock", "parse_stock", "solid_stock", "stock_top", "DEFAULT_MARGIN", "FACING_ALLOWANCE"]
 
 DEFAULT_MARGIN = 1.0  # mm around the cut envelope (sides and bottom)
+FACING_ALLOWANCE = 1.0  # mm of stock assumed above a program that cuts at one level only (rule 4)
 _SOLID_SUFFIXES = {".step", ".stp", ".brep", ".brp"}
 _LEVEL_TOL = 1e-6  # mm; a feed move rising less than this is level
 
@@ -133,11 +137,10 @@ def stock_top(toolpath: Toolpath) -> tuple[float, str]:
         top = max(_extent(m)[1][2] for m in feeds)
         rule = "highest feed move (no sideways feed, no cutting below z = 0)"
     if top <= z_min + _LEVEL_TOL:
-        raise InputError(
-            f"cannot infer the stock top: all cutting happens at z = {top:.6g}; give the stock top explicitly "
-            "(a job's stock_top, or `fusioncut run --stock-top Z`) or the whole stock (`--stock box:x0,y0,z0,x1,y1,z1`)",
-            SourceLocation(toolpath.source),
-        )
+        return top + FACING_ALLOWANCE, (
+            f"all cutting at z = {top:.6g} (a facing pass): the program does not say how deep it cuts, so "
+            f"{FACING_ALLOWANCE:g} mm of stock is assumed above it; give the real top (a job's stock_top, "
+            "`fusioncut run --stock-top Z`) or the whole stock (`--stock box:x0,y0,z0,x1,y1,z1`)")
     return top, rule
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from fusioncut.errors import InputError
 from fusioncut.io.apt import read_apt
-from fusioncut.io.stock import infer_stock, parse_stock, solid_stock, stock_top
+from fusioncut.io.stock import FACING_ALLOWANCE, infer_stock, parse_stock, solid_stock, stock_top
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Toolpath
 from fusioncut.model.stock import BoxStock, CylinderStock, SolidStock
 from fusioncut.model.tools import BallEndMill, FlatEndMill, TaperedEndMill
@@ -80,11 +80,13 @@ def test_origin_on_the_table_uses_the_highest_sideways_level():
     assert stock.maximum[2] == 20.0 and stock.minimum[2] == pytest.approx(14.0)
 
 
-def test_single_level_facing_needs_an_explicit_top():
+def test_single_level_facing_assumes_an_allowance_and_says_so():
     moves = (feed((0, 0, 5), (0, 0, 0)), feed((0, 0, 0), (100, 0, 0)), feed((100, 0, 0), (100, 30, 0)))
     tp = Toolpath(moves, FLAT6, source="face.nc")
-    with pytest.raises(InputError, match="face.nc: cannot infer the stock top"):
-        infer_stock(tp)
+    top, rule = stock_top(tp)
+    assert top == FACING_ALLOWANCE == 1.0
+    assert "facing pass" in rule and "--stock-top" in rule
+    assert infer_stock(tp).maximum[2] == 1.0
     stock = infer_stock(tp, top=1.0)
     assert stock.maximum[2] == 1.0 and stock.minimum[2] == pytest.approx(-1.0)
     assert stock.maximum[1] == pytest.approx(30 + 3 + 1.0)
