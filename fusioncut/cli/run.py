@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Literal, Optional, get_args, get_origin
 
 import typer
+from rich import box
 from rich.console import Console
 from rich.logging import RichHandler
 from rich.markup import escape
@@ -135,14 +136,19 @@ def _run_with_progress(start: Callable[..., object]):
 
 
 def _print_summary(result) -> None:
-    table = Table(title=f"FusionCut results in {escape(str(result.out_dir))}")
-    for col in ("operation", "CLs", "engaged", "air", "rapid", "failed", "removed mm³", "max ae mm",
-                "max ap mm", "median ms/CL"):
-        table.add_column(col, justify="left" if col == "operation" else "right")
+    # fits 80 columns: two-line headers, one space between columns, only the operation's name wraps
+    table = Table(title=f"FusionCut results in {escape(str(result.out_dir))}", box=box.SIMPLE_HEAD,
+                  show_edge=False, pad_edge=False, collapse_padding=True)
+    for col in ("operation", "CLs", "engaged", "air", "rapid", "failed", "removed\nmm³", "max ae\nmm",
+                "max ap\nmm", "median\nms/CL"):
+        named = col == "operation"
+        table.add_column(col, justify="left" if named else "right", no_wrap=not named, min_width=11 if named else None,
+                         ratio=1 if named else None)
     for op in result.operations.values():
         table.add_row(escape(op.operation) or "-", str(op.cls), str(op.engaged), str(op.air), str(op.rapid),
-                      f"[red]{op.failed}[/]" if op.failed else "0", f"{op.removed:.1f}", f"{op.max_ae:.3f}",
-                      f"{op.max_ap:.3f}", f"{op.median_ms:.1f}")
+                      f"[red]{op.failed}[/]" if op.failed else "0",
+                      f"{op.removed:.0f}" if op.removed >= 1000 else f"{op.removed:.1f}", f"{op.max_ae:.4g}",
+                      f"{op.max_ap:.4g}", f"{op.median_ms:.1f}")
     console.print(table)
     console.print(f"stock {result.stock_volume:.1f} mm³ − final {result.final_volume:.1f} mm³ = "
                   f"Σ removed {result.removed_volume:.1f} mm³ (relative error {result.conservation_error:.1e}); "
@@ -259,7 +265,12 @@ def register(app: typer.Typer) -> None:
         (stock inferred unless --stock, the program's tools unless --tools), written as job.json into
         the results folder: `fusioncut run OUT/job.json` runs it again."""
         from fusioncut.api import JOB_FILE
-        from fusioncut.io.job import load_job, program_job, with_inputs, with_run_options
+        from fusioncut.io.job import (
+            load_job,
+            program_job,
+            with_inputs,
+            with_run_options,
+        )
         from fusioncut.io.readers import is_job_file
         from fusioncut.runner import run_job
 
