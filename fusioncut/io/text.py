@@ -11,10 +11,7 @@ __all__ = ["read_source_text", "read_utf8_text"]
 def read_source_text(path: str | Path) -> str:
     """The file's text: UTF-8 (with or without BOM), else Windows-1252/Latin-1 as CAM posts on
     Windows write it. Unreadable files raise :class:`InputError`."""
-    try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise InputError(f"cannot read the file: {e.strerror or e}", SourceLocation(str(path))) from e
+    data = _read_bytes(path)
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -25,10 +22,13 @@ def read_utf8_text(path: str | Path) -> str:
     """The text of a file that must be UTF-8 (JSON), with or without BOM; else :class:`InputError`
     naming the file and the first byte that is not."""
     try:
-        data = Path(path).read_bytes()
-    except OSError as e:
-        raise InputError(f"cannot read the file: {e.strerror or e}", SourceLocation(str(path))) from e
-    try:
-        return data.decode("utf-8-sig")
+        return _read_bytes(path).decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise InputError(f"not UTF-8 text (byte {e.start})", SourceLocation(str(path))) from e
+
+
+def _read_bytes(path: str | Path) -> bytes:
+    try:
+        return Path(path).read_bytes()
+    except OSError as e:
+        raise InputError(f"cannot read the file: {e.strerror or e}", SourceLocation(str(path))) from e
