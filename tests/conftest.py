@@ -1,5 +1,7 @@
 """Test-wide settings.
 
+The shared test data's folder is :data:`shared_data.DATA` (``tests/shared_data.py``).
+
 CI (``.ci/run`` sets ``HYPOTHESIS_PROFILE=ci``) draws the same property-test examples every run, so
 that a landing is red or green for the code, not for the draw; local runs draw new examples (and
 replay the failures they found from ``.hypothesis/``).
@@ -14,6 +16,15 @@ from hypothesis import settings
 
 settings.register_profile("ci", derandomize=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+def pytest_sessionstart(session):
+    """With ``FUSIONCUT_REQUIRE_SHARED_DATA=1`` (CI) a missing shared-data folder stops the run: the
+    real-program tests would otherwise all skip and the run look green (``tests/shared_data.py``)."""
+    from shared_data import DATA
+
+    if os.environ.get("FUSIONCUT_REQUIRE_SHARED_DATA") == "1" and not DATA.is_dir():
+        pytest.exit(f"shared test data not found at {DATA} (set FUSIONCUT_SHARED_DATA)", returncode=4)
 
 
 @pytest.fixture

@@ -5,7 +5,6 @@ module over 800 lines."""
 from __future__ import annotations
 
 import ast
-from collections import defaultdict
 from pathlib import Path
 
 import pytest

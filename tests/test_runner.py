@@ -20,7 +20,7 @@ from fusioncut.io.results import load_results
 from fusioncut.model import BoxStock, FlatEndMill
 from fusioncut.runner import RunPlan, prepare_job, run_job, run_toolpath
 
-DATA = Path(__file__).parents[1].parent / "shared" / "data"  # ../shared/data next to the repository
+from shared_data import DATA
 FUSION = DATA / "fusion-posted" / "1055_utab_265bit.nc"
 TBL = DATA / "linuxcnc-tool-tables" / "configs_sim_axis_sim_mm.tbl"
 needs_data = pytest.mark.skipif(not FUSION.exists(), reason="shared data not available")

@@ -44,8 +44,9 @@ from fusioncut.io.gcode import read_gcode
 from fusioncut.io.results import ResultWriter, load_results
 from fusioncut.io.stock import infer_stock
 from fusioncut.model import CLStatus, Toolpath
+from shared_data import DATA
 
-PROGRAM = Path("/work/shared/data/fusion-posted/1055_utab_265bit.nc")
+PROGRAM = DATA / "fusion-posted" / "1055_utab_265bit.nc"
 N_MOVES = 100
 RPM = 5000.0
 SLICE = 1.0

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -12,7 +11,7 @@ from fusioncut.cli import app
 from fusioncut.io.gcode import read_gcode
 from fusioncut.model import ArcMove
 
-DATA = Path(__file__).parents[2].parent / "shared" / "data"  # ../shared/data next to the repository
+from shared_data import DATA
 FUSION = DATA / "fusion-posted" / "1055_utab_265bit.nc"
 TBL = DATA / "linuxcnc-tool-tables" / "configs_sim_axis_sim_mm.tbl"
 CAMOTICS = DATA / "camotics-examples" / "flower_mold" / "flower_mold.camotics"

@@ -15,7 +15,7 @@ from fusioncut.io.job import ENGINE_ONLY, Options
 from fusioncut.io.results import load_results
 
 runner = CliRunner()
-SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+from shared_data import DATA as SHARED
 FACE = SHARED / "fusion-posted" / "1072_face_otherside.nc"
 
 PROGRAM = """\

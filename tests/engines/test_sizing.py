@@ -4,7 +4,6 @@ from __future__ import annotations
 import math
 import time
 import tracemalloc
-from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -16,7 +15,7 @@ from fusioncut.engines.sizing import Budget, move_segments, size_job
 from fusioncut.errors import JobTooLarge
 from fusioncut.model import ArcMove, ArcPlane, LinearMove
 
-DATA = Path(__file__).parents[2].parent / "shared" / "data"
+from shared_data import DATA
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared test data not found at {DATA}")
 
 # (max_segment_length, chord_tolerance, ramp_step)

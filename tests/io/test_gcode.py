@@ -18,7 +18,7 @@ from fusioncut.io.gcode import GCodeInterpreter, ModalState, parse_gcode_text, r
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Toolpath
 from fusioncut.model.tools import BallEndMill, BullNoseEndMill, ChamferMill, FlatEndMill
 
-DATA = Path(__file__).parents[2].parent / "shared" / "data"
+from shared_data import DATA
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared test data not found at {DATA}")
 
 APPROX = dict(abs=1e-9)

@@ -16,7 +16,7 @@ from fusioncut.errors import InputError
 from fusioncut.io.gcode import GCodeInterpreter, parse_gcode_text, read_gcode
 from fusioncut.model.moves import ArcMove, Toolpath
 
-DATA = Path(__file__).parents[2].parent / "shared" / "data"
+from shared_data import DATA
 FUSION = DATA / "fusion-posted" / "1055_utab_265bit.nc"
 needs_data = pytest.mark.skipif(not FUSION.is_file(), reason=f"shared test data not found at {DATA}")
 

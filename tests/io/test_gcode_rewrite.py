@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import replace
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -18,7 +17,7 @@ from fusioncut.errors import FusionCutError, InputError, SourceLocation
 from fusioncut.io.gcode import parse_gcode_text
 from fusioncut.io.gcode import rewrite_feeds, rewrite_gcode_file
 
-DATA = Path("/work/shared/data")
+from shared_data import DATA
 FUSION = DATA / "fusion-posted/1055_utab_265bit.nc"
 ARCSPIRAL = DATA / "linuxcnc-nc_files/arcspiral.ngc"
 INVERSE = DATA / "linuxcnc-interp-oracle/inverse-time-with-comp/inverse.ngc"

@@ -37,7 +37,7 @@ from fusioncut.io.gcode import GCodeInterpreter, read_gcode
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove
 from fusioncut.model.tools import FlatEndMill
 
-DATA = Path(__file__).parents[2].parent / "shared" / "data"
+from shared_data import DATA
 REF = DATA / "rs274-reference-outputs"
 ORACLE = DATA / "linuxcnc-interp-oracle"
 

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pytest
 
@@ -13,7 +12,7 @@ from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Toolpath
 from fusioncut.model.stock import BoxStock, CylinderStock, SolidStock
 from fusioncut.model.tools import BallEndMill, FlatEndMill, TaperedEndMill
 
-DATA = Path(__file__).parents[2].parent / "shared" / "data"
+from shared_data import DATA
 
 
 def feed(a, b, tool=1):

@@ -5,7 +5,6 @@ import copy
 import json
 import math
 import zipfile
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -25,7 +24,7 @@ from fusioncut.model.tools import (
     TaperedEndMill,
 )
 
-DATA = Path(__file__).parents[2].parent / "shared" / "data"
+from shared_data import DATA
 TBL = DATA / "linuxcnc-tool-tables"
 CAMOTICS = DATA / "camotics-examples"
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="shared test data (../shared/data) not present")

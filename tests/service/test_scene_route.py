@@ -12,6 +12,7 @@ from service_helpers import KEY_B, TINY_GCODE, TINY_JOB, tiny_submission, tiny_t
 from fusioncut.service.files import INPUT_DIR, JOB_FILE
 from fusioncut.service.scene_cache import SCENES_DIR, build_scene, scene_name, state_spacing, want_name
 from fusioncut.viz.scene import glb_json
+from shared_data import DATA
 
 
 def _extras(glb: bytes) -> dict:
@@ -59,7 +60,7 @@ def test_replays_start_from_saved_states_and_give_the_same_workpiece(job_folder,
     assert state_spacing(tiny_total()) == 100 and state_spacing(1_000_000) == 15_625
 
 
-FUSION = Path(__file__).parents[2].parent / "shared" / "data" / "fusion-posted" / "1055_utab_265bit.nc"
+FUSION = DATA / "fusion-posted" / "1055_utab_265bit.nc"
 
 
 def _utab_folder(folder: Path) -> Path:
