@@ -40,9 +40,8 @@ class ProgramSize:
 
 
 FULL = ProgramSize()
-# one depth level (its helical entry is most of the adaptive's time), so that --quick takes ~3 min
-# instead of ~5; measurements in comments and notes that name "the quick program" before
-# 2026-11-25 were taken on depths (-4, -8) and 4 finish rows
+# one depth level (its helical entry is most of the adaptive's time) and two finish rows, so that
+# --quick takes a few minutes (docs/benchmark.md says which program older figures were taken on)
 QUICK = ProgramSize(slot_length=16.0, slots=2, depths=(-4.0,), finish_rows=2, contours=1)
 
 

@@ -36,7 +36,7 @@ CL_COLUMNS: tuple[Column, ...] = (
     _c("operation", "string", "", "operation (program section) the move belongs to"),
     _c("file", "string", "", "source file of the move"),
     _c("line", "int64", "", "1-based source line (0: unknown)"),
-    _c("tool", "string", "", "tool label (name, T<n> or kind); its record is metadata.json's tools[label]"),
+    _c("tool", "string", "", "tool label (name, `T<n>` or kind); its record is metadata.json's tools[label]"),
     _c("spindle", "string", "", "spindle sense: cw (M3) or ccw (M4)"),
     _c("spindle_rpm", "float64", "rev/min", "the program's spindle speed (S) at the move; NaN: none programmed, "
        "or results written before it was recorded"),
