@@ -11,7 +11,10 @@ import pkgutil
 
 import typer
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help="Exact cutter-workpiece engagement for milling.")
+# plain click help (rich_markup_mode=None): it wraps the option help in one column at any terminal width,
+# where rich's option panels leave the help text a sliver of an 80-column terminal
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+                  help="Exact cutter-workpiece engagement for milling.")
 
 for _mod in sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_")):
     importlib.import_module(f"{__name__}.{_mod}").register(app)

@@ -176,8 +176,8 @@ SOURCE_HELP = ("job JSON (see `fusioncut schema`), or a toolpath file: G-code (.
 TOOLS_HELP = "tool library (.json, .tools, .tbl) in place of the job's; a program's own tools fill the gaps"
 STOCK_HELP = ("stock in place of the job's: box:x0,y0,z0,x1,y1,z1 or cylinder:cx,cy,cz,radius,height (mm), a "
               ".step/.stp/.brep file, a .camotics project's workpiece, or infer (the default for a program)")
-STOCK_TOP_HELP = ("the top of the inferred stock (mm, machine z): give it when the program does not show it, "
-                  "as a facing pass at z = 0 does not")
+STOCK_TOP_HELP = ("the top of the inferred stock (mm, machine z): give it when the program does not show it "
+                  "(a program cutting at one level only gets 1 mm of stock above that level)")
 SCHEDULER_HELP = ("run on every worker of a running Dask scheduler (e.g. tcp://host:8786); wins over "
                   "--workers; overrides the job's options.scheduler")
 
