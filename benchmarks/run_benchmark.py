@@ -217,10 +217,12 @@ def _print(report: dict, heights: list[float]) -> None:
         print(f"  {op:<12} {fmt(row['baseline_median_ms']):>8} {fmt(row['ours_same_cls_median_ms']):>8} "
               f"{fmt(row['ratio']):>6} {fmt(row['sum_ratio']):>9}")
     parallel = ", ".join(f"{w}: {t:.1f} s" for w, t in report["parallel_seconds"].items())
+    speedup = report.get("parallel_speedup_2_over_1")
     print(f"peak RSS {report['peak_rss_mb']:.0f} MB; parallel seconds by workers: {parallel or '-'}"
-          + (f"; speedup 2/1 {report['parallel_speedup_2_over_1']:.2f}" if "parallel_speedup_2_over_1" in report else ""))
+          + (f"; speedup 2/1 {speedup:.2f}" if speedup is not None else ""))
     if report["worker_peak_rss_mb"]:
-        print("worker peak RSS by workers: " + ", ".join(f"{w}: {m:.0f} MB" for w, m in report["worker_peak_rss_mb"].items()))
+        rss = ", ".join(f"{w}: {m:.0f} MB" for w, m in report["worker_peak_rss_mb"].items())
+        print(f"worker peak RSS by workers: {rss}")
 
 if __name__ == "__main__":
     main()
