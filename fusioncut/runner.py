@@ -22,6 +22,12 @@ The run options ``workers`` and ``scheduler`` run the CLs on Dask workers
 (:mod:`fusioncut.engines.brep.parallel`) with the same rows, checkpoints, snapshots and exports; a
 checkpoint of a parallel run resumes single-process and the other way round. The workers compute
 CLs in batches, so there Ctrl-C stops once the batch in progress is done.
+
+The engine option ``engine="analytic"`` runs :class:`~fusioncut.engines.analytic.engine.AnalyticEngine`
+(exact sweeps, no Booleans) instead: box stocks and tools of revolution only, checked before anything
+is written; always in this process (``workers`` and ``scheduler`` are ignored with a warning, as
+they steer the run, not its results); it keeps no B-Rep workpiece, so the IPW export and snapshots
+are skipped with one warning.
 """
 from __future__ import annotations
 
@@ -38,7 +44,8 @@ from pathlib import Path
 from typing import Any
 
 from fusioncut._version import __version__
-from fusioncut.engines.base import Engine, EngineOptions
+from fusioncut.engines.analytic.engine import AnalyticEngine
+from fusioncut.engines.base import Engine, EngineKind, EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.segments import segments_for
 from fusioncut.engines.sizing import Budget, size_toolpath
@@ -278,8 +285,13 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
 
 
 def _engine(options: EngineOptions, workers: int, scheduler: str | None) -> Engine:
-    """The engine for these run options: :class:`BRepEngine`, or the parallel one with its Dask
-    client open (an unreachable scheduler fails here, before anything is written)."""
+    """The engine for these run options: :class:`AnalyticEngine` when the options ask for it (always
+    single-process), else :class:`BRepEngine`, or the parallel one with its Dask client open (an
+    unreachable scheduler fails here, before anything is written)."""
+    if options.engine == EngineKind.ANALYTIC:
+        if workers > 1 or scheduler:
+            log.warning("the analytic engine runs in this process: workers and scheduler are ignored")
+        return AnalyticEngine(options)
     if workers <= 1 and not scheduler:
         return BRepEngine(options)
     if _inside_dask_worker():
@@ -323,6 +335,8 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
     for s in segments:
         expected[s.operation] = expected.get(s.operation, 0) + 1
     ck_dir = out_dir / CHECKPOINT_DIR
+    if isinstance(engine, AnalyticEngine):
+        engine.check_tools(toolpath, default_tool)  # before anything is written
 
     start_at, kept_rows = (_resume_point(engine, out_dir, job_id, total) if resume else (0, []))
     if start_at == 0:
@@ -349,6 +363,9 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
     if default_tool is not None:
         tools.setdefault(default_tool.label, default_tool)
     snapshots = set(snapshot_cls)
+    if isinstance(engine, AnalyticEngine) and (export_ipw or snapshots):
+        log.warning("the analytic engine keeps no B-Rep workpiece: no IPW export or snapshot is written")
+        snapshots, export_ipw = set(), False
     exported: list[Path] = []
     interrupted = False
     writer = ResultWriter(out_dir, job_hash=job_id, tools=tools, options=engine.options, expected_cls=expected,
@@ -441,6 +458,10 @@ def _export(engine: Engine, paths: list[Path]) -> list[Path]:
         ipw = engine.ipw  # once for all paths: a parallel engine fetches it from its workers
     except Exception as e:  # noqa: BLE001 - as below: the results are complete without the files
         log.error("could not get the workpiece to write %s: %s", ", ".join(p.name for p in paths), e)
+        return written
+    if ipw is None:
+        log.warning("the %s engine keeps no workpiece to write %s", engine.kind.value,
+                    ", ".join(p.name for p in paths))
         return written
     for p in paths:
         try:

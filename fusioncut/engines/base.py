@@ -7,12 +7,13 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from fusioncut.model.engagement import EngagementMap
-from fusioncut.model.options import LOWER_BOUNDS, SWEEP_CHOICES, EngineKind, EngineOptions, SweepMethod
+from fusioncut.model.options import (ENGINE_CHOICES, LOWER_BOUNDS, SWEEP_CHOICES, EngineKind, EngineOptions,
+                                     SweepMethod)
 from fusioncut.model.moves import Toolpath
 from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool
 
-__all__ = ["LOWER_BOUNDS", "SWEEP_CHOICES", "Engine", "EngineKind", "EngineOptions", "SweepMethod"]
+__all__ = ["ENGINE_CHOICES", "LOWER_BOUNDS", "SWEEP_CHOICES", "Engine", "EngineKind", "EngineOptions", "SweepMethod"]
 
 
 class Engine(Protocol):
@@ -21,7 +22,8 @@ class Engine(Protocol):
     ``start`` (or ``load_checkpoint``) sets the workpiece, ``process`` yields one map per CL segment
     from a CL index on, in order, never skipping one; after each map the engine state (``ipw``,
     ``ipw_volume``, ``removed_total``, a checkpoint) includes that CL and no later one. A checkpoint of
-    one engine kind resumes in any other. ``options`` may be replaced between runs (the runner sets
+    one B-Rep engine kind resumes in the other; the analytic engine's only in itself (the job hash
+    names the engine when it is not the default, so the runner never mixes them). ``options`` may be replaced between runs (the runner sets
     the cell size a checkpoint was cut into). Volumes are mm³.
     """
 
@@ -58,7 +60,8 @@ class Engine(Protocol):
 
     @property
     def ipw(self) -> Any:
-        """The in-process workpiece after the last CL handed out (a kernel shape)."""
+        """The in-process workpiece after the last CL handed out (a kernel shape), or None for an
+        engine that keeps none (the analytic engine: the runner then exports no IPW)."""
         ...
 
     @property

@@ -10,7 +10,7 @@ from typing import Any
 
 from fusioncut.errors import InputError, JobTooLarge
 
-__all__ = ["LOWER_BOUNDS", "SWEEP_CHOICES", "EngineKind", "EngineOptions", "SweepMethod"]
+__all__ = ["ENGINE_CHOICES", "LOWER_BOUNDS", "SWEEP_CHOICES", "EngineKind", "EngineOptions", "SweepMethod"]
 
 
 class SweepMethod(StrEnum):
@@ -31,10 +31,16 @@ SWEEP_CHOICES = (SweepMethod.EXACT, SweepMethod.SAMPLED)
 
 
 class EngineKind(StrEnum):
-    """Which engine runs the CLs: the B-Rep engine in this process, or over Dask workers."""
+    """Which engine runs the CLs: the B-Rep engine in this process or over Dask workers, or the
+    analytic engine (exact sweeps, no Booleans) in this process."""
 
     BREP = "brep"
     PARALLEL_BREP = "parallel-brep"
+    ANALYTIC = "analytic"
+
+
+# the engines a job may ask for (``EngineOptions.engine``); PARALLEL_BREP follows from the run options
+ENGINE_CHOICES = (EngineKind.BREP, EngineKind.ANALYTIC)
 
 
 def _option(default: Any, help: str) -> Any:
@@ -49,7 +55,8 @@ class EngineOptions:
 
     Invariants: the lengths that drive how much work a run makes are bounded below
     (:data:`LOWER_BOUNDS`, checked here, before any move is expanded); ``sweep`` is a
-    :class:`SweepMethod` one may ask for (``exact`` or ``sampled``; strings are accepted).
+    :class:`SweepMethod` one may ask for (``exact`` or ``sampled``; strings are accepted); ``engine``
+    is one of :data:`ENGINE_CHOICES` (strings are accepted).
 
     The mechanisms behind the options are described where they act: cells, their quarters and the
     Boolean's fuzzy values in :mod:`fusioncut.engines.brep.engine`, the height map
@@ -103,6 +110,9 @@ class EngineOptions:
     min_chip_thickness: float = _option(1e-3, (
         "A slice band whose removed material is thinner than this (mm) across the path only rubs: "
         "its arcs are no engagement and do not count in ap; 0 turns the test off."))
+    engine: EngineKind = _option(EngineKind.BREP, (
+        "Which engine computes the engagement: 'brep' (OCCT Booleans on the B-Rep IPW) or 'analytic' "
+        "(exact sweeps, no Booleans; box stock and tools of revolution only; no IPW export)."))
 
     def __post_init__(self) -> None:
         try:
@@ -113,6 +123,14 @@ class EngineOptions:
             raise InputError(f"options.sweep: {self.sweep!r} is not one of "
                              + ", ".join(repr(s.value) for s in SWEEP_CHOICES))
         object.__setattr__(self, "sweep", sweep)
+        try:
+            engine = EngineKind(self.engine)
+        except ValueError:
+            engine = None
+        if engine not in ENGINE_CHOICES:
+            raise InputError(f"options.engine: {self.engine!r} is not one of "
+                             + ", ".join(repr(e.value) for e in ENGINE_CHOICES))
+        object.__setattr__(self, "engine", engine)
         for name, low in LOWER_BOUNDS.items():
             value = getattr(self, name)
             if value is not None and not value >= low:

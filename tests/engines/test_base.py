@@ -67,6 +67,30 @@ def test_both_engines_implement_the_protocol():
         assert engine.kind is kind and engine.shares_cells is shares
 
 
+def test_the_analytic_engine_implements_the_protocol(tmp_path):
+    from fusioncut.engines.analytic.engine import AnalyticEngine
+    from fusioncut.model import BoxStock
+
+    members = _protocol_members()
+    fields = {f.name for f in dataclasses.fields(AnalyticEngine)}
+    assert not [m for m in members if not hasattr(AnalyticEngine, m) and m not in fields]
+    for name in ("process", "save_checkpoint", "load_checkpoint", "start"):
+        assert list(inspect.signature(getattr(AnalyticEngine, name)).parameters) == \
+            list(inspect.signature(getattr(Engine, name)).parameters), name
+    engine = AnalyticEngine(EngineOptions(engine="analytic"))
+    assert engine.kind is EngineKind.ANALYTIC and engine.shares_cells is False
+    assert engine.load_checkpoint(tmp_path) is None  # nothing saved yet
+    engine.start(BoxStock((0, 0, -10), (30, 20, 0)))
+    engine.removed_total = 12.5
+    assert engine.ipw is None and engine.ipw_volume == 6000 - 12.5
+    engine.save_checkpoint(tmp_path, 3)
+    again = AnalyticEngine(EngineOptions(engine="analytic"))
+    assert again.load_checkpoint(tmp_path) == 3
+    assert again.stock == engine.stock and again.removed_total == 12.5
+    assert json.loads((tmp_path / "state.json").read_text())["next_cl"] == 3
+    engine.close()
+
+
 def test_the_cl_maps_doctests_hold():
     failed, attempted = doctest.testmod(cl_maps)
     assert attempted > 0 and failed == 0

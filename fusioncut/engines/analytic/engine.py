@@ -18,7 +18,11 @@ and holder do). Nothing is built or kept but the sweeps themselves (one row each
   move are one sweep (:class:`.index.SweepIndex`).
 
 Since the workpiece before a CL follows from the path alone, :meth:`AnalyticEngine.process` can
-start at any CL: the sweeps before it are indexed, not evaluated.
+start at any CL: the sweeps before it are indexed, not evaluated. A checkpoint
+(:meth:`AnalyticEngine.save_checkpoint`) therefore holds the stock, the removed total, the next CL
+and the sweep rows; on resume the rows are indexed again from the path and must equal the saved
+ones (a checkpoint of another toolpath is refused). There is no B-Rep in-process workpiece
+(``ipw`` is None; its volume is the stock's less the removed total), so a run exports none.
 
 The CL segments are the B-Rep engine's (:func:`fusioncut.engines.segments.segments_for`), so CL
 indices match; a piece of a ramp or helix is swept along the programmed path itself, not as the
@@ -27,19 +31,22 @@ volumes for the minimum chip thickness (no band is called rubbing), stocks other
 """
 from __future__ import annotations
 
+import json
 import math
+import os
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_touches
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
-from fusioncut.engines.analytic.sweeps import arc_row, line_row
+from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
-from fusioncut.engines.base import EngineOptions, SweepMethod
+from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
@@ -51,10 +58,17 @@ WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts 
 VOLUME_EPS = 1e-12  # mm³: a CL removing less is idle (air, or a rapid through air)
 N_TOUCH = 360  # angles per height scanned for the contact's height range
 Z_TOL = 1e-10  # mm: the contact's height range
+STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
+SWEEPS = "ipw-sweeps.npz"  # the engine state; named like the B-Rep engine's IPW files so that a
+# fresh run clears it with them
 
 
 class UnsupportedStock(InputError):
     """A stock the analytic engine cannot take (it needs a box)."""
+
+
+class CheckpointMismatch(InputError):
+    """A checkpoint whose sweeps are not the toolpath's before its next CL."""
 
 
 @dataclass
@@ -72,14 +86,74 @@ class AnalyticEngine:
     removed_total: float = 0.0
     _index: SweepIndex | None = field(default=None, init=False, repr=False)
     _tools: ProfileTable = field(default_factory=ProfileTable, init=False, repr=False)
+    _saved_sweeps: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    @property
+    def kind(self) -> EngineKind:
+        return EngineKind.ANALYTIC
+
+    @property
+    def shares_cells(self) -> bool:
+        return False
+
+    def close(self) -> None:
+        """Nothing is held outside this process."""
 
     def start(self, stock: Stock) -> None:
         if not isinstance(stock, BoxStock):
-            raise UnsupportedStock(f"the analytic engine needs a box stock, got {type(stock).__name__}")
-        self.stock = (*stock.minimum, *stock.maximum)
-        self.removed_total = 0.0
+            raise UnsupportedStock(f"the analytic engine needs a box stock, got {type(stock).__name__} "
+                                   "(choose the brep engine for it)")
+        self._reset((*stock.minimum, *stock.maximum), 0.0)
+
+    def _reset(self, stock: tuple[float, ...], removed_total: float) -> None:
+        self.stock = tuple(float(v) for v in stock)
+        self.removed_total = removed_total
         self._index = SweepIndex(self.bin_size) if self.bin_size else None
         self._tools = ProfileTable()
+        self._saved_sweeps = None
+
+    @property
+    def ipw(self) -> None:
+        """None: this engine keeps no B-Rep workpiece, only the sweeps (see the module docstring)."""
+        return None
+
+    @property
+    def ipw_volume(self) -> float:
+        """The workpiece's volume (mm³): the stock's less what the CLs handed out removed."""
+        return self.stock_volume - self.removed_total
+
+    def _sweeps(self) -> np.ndarray:
+        n = self._index.size if self._index else 0
+        return self._index.rows[:n].copy() if self._index else np.zeros((0, 0))
+
+    def save_checkpoint(self, folder: Path, next_cl: int) -> None:
+        """Write the stock, the removed total (mm³), ``next_cl`` and the sweep rows into ``folder``:
+        :data:`SWEEPS` (the state, replaced whole) then :data:`STATE` (``next_cl`` for readers)."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        tmp = folder / (SWEEPS + ".tmp")
+        with open(tmp, "wb") as f:
+            np.savez(f, stock=np.array(self.stock), removed_total=np.array(self.removed_total),
+                     next_cl=np.array(next_cl), sweeps=self._sweeps())
+        os.replace(tmp, folder / SWEEPS)
+        tmp = folder / (STATE + ".tmp")
+        tmp.write_text(json.dumps({"engine": self.kind.value, "next_cl": next_cl, "state": SWEEPS}))
+        os.replace(tmp, folder / STATE)
+
+    def load_checkpoint(self, folder: Path) -> int | None:
+        """Restore a checkpoint of :meth:`save_checkpoint`; its next CL, or None when there is none
+        readable. The sweeps are indexed again by :meth:`process` and checked against the saved rows."""
+        try:
+            with np.load(Path(folder) / SWEEPS, allow_pickle=False) as saved:
+                stock, removed = tuple(saved["stock"]), float(saved["removed_total"])
+                next_cl, sweeps = int(saved["next_cl"]), saved["sweeps"]
+        except (OSError, ValueError, KeyError):
+            return None
+        if len(stock) != 6:
+            return None
+        self._reset(stock, removed)
+        self._saved_sweeps = sweeps
+        return next_cl
 
     @property
     def stock_volume(self) -> float:
@@ -90,16 +164,31 @@ class AnalyticEngine:
         self.start(stock)
         yield from self.process(toolpath, default_tool)
 
+    def check_tools(self, toolpath: Toolpath, default_tool: MillingTool | None = None) -> None:
+        """Refuse a toolpath with a tool this engine cannot sweep (:class:`.profile.UnsupportedTool`
+        names the tool and why), before any CL is run."""
+        for tool in [*toolpath.tools.values(), *([default_tool] if default_tool else [])]:
+            lower_profile(tool)
+
     def process(self, toolpath: Toolpath, default_tool: MillingTool | None = None,
                 start_at: int = 0) -> Iterator[EngagementMap]:
         """One map per CL segment from CL ``start_at`` on; the sweeps of the CLs before it are only
-        indexed (their removed volume is not counted in ``removed_total``)."""
+        indexed (their removed volume is not counted in ``removed_total``). After
+        :meth:`load_checkpoint` they must be the checkpoint's sweeps (else :class:`CheckpointMismatch`)."""
         for cl in cl_sequence(toolpath, self.options, default_tool):
             if cl.index < start_at:
                 profile = lower_profile(cl.tool)
                 self._index_of(profile).add(*sweep_row(cl.move, profile, self._tools.index_of(profile)))
                 continue
+            if cl.index == start_at:
+                self._check_saved_sweeps(toolpath)
             yield self.step(cl)
+
+    def _check_saved_sweeps(self, toolpath: Toolpath) -> None:
+        saved, self._saved_sweeps = self._saved_sweeps, None
+        if saved is not None and not np.array_equal(saved.reshape(-1, NCOL), self._sweeps().reshape(-1, NCOL)):
+            raise CheckpointMismatch("the checkpoint's sweeps are not this toolpath's; run it afresh",
+                                     toolpath.source or None)
 
     def _index_of(self, profile: LowerProfile) -> SweepIndex:
         if self._index is None:

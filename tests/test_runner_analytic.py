@@ -1,0 +1,152 @@
+"""The analytic engine in a run (``engine="analytic"``): the CLI, resume, the job hash, refusals."""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import re
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from fusioncut.cli import app
+from fusioncut.engines.analytic.engine import AnalyticEngine, UnsupportedStock
+from fusioncut.engines.base import EngineKind, EngineOptions
+from fusioncut.io.job import Job, Options, StockSpec, ToolSpec, job_hash, load_job
+from fusioncut.io.results import load_results
+from fusioncut.runner import _engine, prepare_job, run_job
+
+# A flat end mill slot 2 mm deep (entering from outside the stock) and a ball-end ramp (1:2, swept along its path).
+PROGRAM = """\
+G21 G90 G17
+(Slot)
+T1 M6
+S10000 M3
+G0 X-5 Y5 Z5
+G1 Z-2 F300
+G1 X12 F600
+G0 Z5
+(Ramp)
+T2 M6
+G0 X5 Y15 Z5
+G1 Z0.5 F300
+G1 X9 Z-2 F600
+G0 Z5
+M30
+"""
+STOCK = {"kind": "box", "min": [0, 0, -10], "max": [30, 20, 0]}
+TOOLS = [{"number": 1, "kind": "flat", "diameter": 6, "flute_length": 15},
+         {"number": 2, "kind": "ball", "diameter": 6, "flute_length": 15}]
+# the slot's removed volume (mm³): 2 mm deep, 6 mm wide from the stock's edge at x = 0 to x = 12, and
+# the half disc of the tool's end
+SLOT_VOLUME = 2 * (6 * 12 + math.pi * 3 ** 2 / 2)
+
+
+def job_file(tmp_path: Path, **options) -> Path:
+    (tmp_path / "prog.nc").write_text(PROGRAM)
+    job = {"name": "analytic", "stock": STOCK, "tools": TOOLS, "toolpaths": ["prog.nc"],
+           "options": {"max_segment_length": 3.0, "engine": "analytic", **options}}
+    path = tmp_path / "job.json"
+    path.write_text(json.dumps(job))
+    return path
+
+
+def tables(out: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
+    r = load_results(out)
+    return r.cl.drop(columns=["time_ms"]), r.slices
+
+
+def test_cli_run_with_the_analytic_engine_gives_the_engines_maps(tmp_path):
+    job = job_file(tmp_path, checkpoint_every=5)
+    job.write_text(job.read_text().replace('"engine": "analytic", ', ""))  # the flag chooses it
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, ["run", str(job), "--out", str(out), "--engine", "analytic"])
+    assert res.exit_code == 0, res.output
+    found = re.search(r"relative\s+error\s+([0-9.e+-]+)", res.output)
+    assert found, res.output
+    error = float(found.group(1))
+    assert error < 1e-9
+    assert not (out / "ipw.step").exists() and not (out / "ipw.stl").exists()
+    assert "no IPW export" in (out / "fusioncut.log").read_text()
+    assert json.loads((out / "metadata.json").read_text())["engine_options"]["engine"] == "analytic"
+
+    cl = load_results(out).cl
+    loaded, base = load_job(job)
+    p = prepare_job(loaded.model_copy(update={"options": Options(**{**loaded.options.model_dump(),
+                                                                      "engine": "analytic"})}), base)
+    maps = list(AnalyticEngine(p.options).run(p.toolpath, p.stock, p.default_tool))
+    assert list(cl["cl"]) == [m.cl_index for m in maps] and len(maps) > 10
+    assert list(cl["status"].astype(str)) == [m.status.value for m in maps]
+    for column, values in (("removed_volume_mm3", [m.removed_volume for m in maps]),
+                           ("ae_mm", [m.ae for m in maps]), ("ap_mm", [m.ap for m in maps])):
+        assert list(cl[column]) == pytest.approx(values, abs=1e-12, rel=1e-12), column
+    slot = cl[cl["operation"] == "Slot"]["removed_volume_mm3"].sum()
+    assert slot == pytest.approx(SLOT_VOLUME, rel=1e-7)
+    assert cl[cl["operation"] == "Ramp"]["removed_volume_mm3"].sum() > 1.0
+
+
+def test_an_interrupted_analytic_run_resumes_to_identical_results(tmp_path):
+    job, base = load_job(job_file(tmp_path, checkpoint_every=4))
+    ref = run_job(job, base, tmp_path / "ref")
+    assert not ref.interrupted and ref.conservation_error < 1e-9
+
+    out = tmp_path / "out"
+    seen: list[int] = []
+
+    def stop_after_nine(m, total):
+        seen.append(m.cl_index)
+        if len(seen) == 9:
+            raise KeyboardInterrupt
+
+    assert run_job(job, base, out, on_cl=stop_after_nine).interrupted
+    assert json.loads((out / "checkpoint" / "state.json").read_text())["next_cl"] == 9
+    again = run_job(job, base, out)
+    assert not again.interrupted and again.resumed_from == 9
+    (cl_a, sl_a), (cl_b, sl_b) = tables(tmp_path / "ref"), tables(out)
+    pd.testing.assert_frame_equal(cl_a, cl_b, check_exact=True)
+    pd.testing.assert_frame_equal(sl_a, sl_b, check_exact=True)
+    assert again.removed_volume == ref.removed_volume and again.final_volume == ref.final_volume
+
+
+def test_a_job_that_does_not_name_the_engine_keeps_its_hash(tmp_path):
+    """The hash below was computed before the engine option existed, for this very job."""
+    (tmp_path / "p.nc").write_text("G21 G90\nT1 M6\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10\nM30\n")
+    job = Job(name="h", stock=StockSpec(kind="box", min=(0, 0, -10), max=(30, 20, 0)),
+              tools=[ToolSpec(number=1, kind="flat", diameter=6, flute_length=15)], toolpaths=["p.nc"],
+              options=Options(max_segment_length=3.0))
+    assert job_hash(job, tmp_path) == "fe98d63b5b0a2285"
+    brep = job.model_copy(update={"options": Options(max_segment_length=3.0, engine="brep")})
+    analytic = job.model_copy(update={"options": Options(max_segment_length=3.0, engine="analytic")})
+    assert job_hash(brep, tmp_path) == "fe98d63b5b0a2285"
+    assert job_hash(analytic, tmp_path) != "fe98d63b5b0a2285"
+
+
+def test_an_unknown_engine_is_refused_naming_the_flag(tmp_path):
+    res = CliRunner().invoke(app, ["run", str(job_file(tmp_path)), "--out", str(tmp_path / "out"),
+                                   "--engine", "parallel-brep"])
+    assert res.exit_code != 0 and "engine" in res.output and "Traceback" not in res.output
+    with pytest.raises(Exception, match="options.engine"):
+        EngineOptions(engine="parallel-brep")
+
+
+def test_a_cylinder_stock_is_refused_before_anything_is_written(tmp_path):
+    path = job_file(tmp_path)
+    data = json.loads(path.read_text())
+    data["stock"] = {"kind": "cylinder", "base_center": [15, 10, -10], "radius": 15, "height": 10}
+    path.write_text(json.dumps(data))
+    job, base = load_job(path)
+    out = tmp_path / "out"
+    with pytest.raises(UnsupportedStock, match="box stock, got CylinderStock"):
+        run_job(job, base, out)
+    assert not (out / "cl.parquet").exists()
+    res = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "cli")])
+    assert res.exit_code != 0 and "box stock" in res.output and "Traceback" not in res.output
+
+
+def test_workers_are_ignored_with_a_warning(caplog):
+    with caplog.at_level(logging.WARNING, logger="fusioncut.run"):
+        engine = _engine(EngineOptions(engine="analytic"), 4, None)
+    assert engine.kind is EngineKind.ANALYTIC and not engine.shares_cells
+    assert "workers and scheduler are ignored" in caplog.text
