@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fusioncut.cli import app
-from fusioncut.engines.analytic.engine import AnalyticEngine, UnsupportedStock
+from fusioncut.engines.analytic.engine import AnalyticEngine, CheckpointMismatch, UnsupportedStock
 from fusioncut.engines.base import EngineKind, EngineOptions
 from fusioncut.io.job import Job, Options, StockSpec, ToolSpec, job_hash, load_job
 from fusioncut.io.results import load_results
@@ -150,3 +150,46 @@ def test_workers_are_ignored_with_a_warning(caplog):
         engine = _engine(EngineOptions(engine="analytic"), 4, None)
     assert engine.kind is EngineKind.ANALYTIC and not engine.shares_cells
     assert "workers and scheduler are ignored" in caplog.text
+
+
+def test_an_unsupported_tool_is_refused_before_anything_is_written(tmp_path, monkeypatch):
+    """The runner asks the engine about every tool first; the profile's refusal (a non-convex lower
+    profile, which no tool family of a job makes today) is stood in for here."""
+    from fusioncut.engines.analytic import engine as analytic
+    from fusioncut.engines.analytic.profile import UnsupportedTool
+
+    real = analytic.lower_profile
+
+    def refuse_ball(tool):
+        if tool.number == 2:
+            raise UnsupportedTool(f"tool {tool.label}: its lower profile is not convex")
+        return real(tool)
+
+    monkeypatch.setattr(analytic, "lower_profile", refuse_ball)
+    job, base = load_job(job_file(tmp_path))
+    out = tmp_path / "out"
+    with pytest.raises(UnsupportedTool, match="not convex"):
+        run_job(job, base, out)
+    assert not (out / "cl.parquet").exists() and not (out / "checkpoint").exists()
+
+
+def test_a_checkpoint_of_another_toolpath_is_refused(tmp_path):
+    slot = PROGRAM.split("(Ramp)")[0] + "M30\n"
+    engines, paths = [], []
+    for name, program in (("a", slot), ("b", slot.replace("Y5 Z5", "Y6 Z5"))):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "prog.nc").write_text(program)
+        job = Job(name=name, stock=StockSpec(**STOCK), tools=[ToolSpec(**TOOLS[0])], toolpaths=["prog.nc"],
+                  options=Options(max_segment_length=3.0, engine="analytic"))
+        paths.append(prepare_job(job, tmp_path / name))
+        engines.append(AnalyticEngine(paths[-1].options))
+    a, b = engines
+    maps = a.run(paths[0].toolpath, paths[0].stock, paths[0].default_tool)
+    for _ in range(9):
+        next(maps)
+    a.save_checkpoint(tmp_path / "ck", 9)
+    assert b.load_checkpoint(tmp_path / "ck") == 9
+    with pytest.raises(CheckpointMismatch, match="not this toolpath's"):
+        next(b.process(paths[1].toolpath, paths[1].default_tool, start_at=9))
+    assert a.load_checkpoint(tmp_path / "ck") == 9  # its own toolpath resumes
+    assert next(a.process(paths[0].toolpath, paths[0].default_tool, start_at=9)).cl_index == 9
