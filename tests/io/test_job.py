@@ -109,7 +109,7 @@ def test_the_jobs_engine_options_are_engine_options_fields_with_their_defaults_a
         assert field.description == engine[name].metadata["help"], name
     # a job's engine options make the EngineOptions they say, every field included
     values = {"slice_height": 0.5, "max_segment_length": 2.0, "chord_tolerance": 2e-3, "ramp_step": 0.1,
-              "sweep": "sampled", "cell_size": None, "min_chip_thickness": 0.0}
+              "sweep": "sampled", "cell_size": None, "min_chip_thickness": 0.0, "engine": "analytic"}
     assert set(values) == job_fields
     made = EngineOptions(**Options(**values).model_dump(exclude=set(RUN_OPTIONS)))
     assert {k: getattr(made, k) for k in values} == values
