@@ -39,7 +39,7 @@ def program() -> Toolpath:
              ArcMove((-6, 14, -2), (-6, 26, -2), center=(-6, 20, -2), clockwise=False, feed=800.0, tool=1),
              f((-6, 26, -2), (40, 26, -2))]
     # a helical entry at (30, 20): 1.5 turns from 0.5 above the top down to 3 mm deep, then a level turn
-    top, depth, rho = 0.5, 3.0, 3.0
+    top, depth = 0.5, 3.0  # the helix radius is 3 mm: centre (30, 20), start (33, 20)
     moves += [f((40, 26, -2), (40, 26, 2)), f((40, 26, 2), (33, 20, 2)), f((33, 20, 2), (33, 20, top)),
               ArcMove((33, 20, top), (27, 20, -depth), center=(30, 20, top), clockwise=True, turns=1,
                       feed=600.0, tool=1),
