@@ -115,27 +115,24 @@ class EngineOptions:
         "(exact sweeps, no Booleans; box stock and tools of revolution only; no IPW export)."))
 
     def __post_init__(self) -> None:
-        try:
-            sweep = SweepMethod(self.sweep)
-        except ValueError:
-            sweep = None
-        if sweep not in SWEEP_CHOICES:
-            raise InputError(f"options.sweep: {self.sweep!r} is not one of "
-                             + ", ".join(repr(s.value) for s in SWEEP_CHOICES))
-        object.__setattr__(self, "sweep", sweep)
-        try:
-            engine = EngineKind(self.engine)
-        except ValueError:
-            engine = None
-        if engine not in ENGINE_CHOICES:
-            raise InputError(f"options.engine: {self.engine!r} is not one of "
-                             + ", ".join(repr(e.value) for e in ENGINE_CHOICES))
-        object.__setattr__(self, "engine", engine)
+        self._choose("sweep", SweepMethod, SWEEP_CHOICES)
+        self._choose("engine", EngineKind, ENGINE_CHOICES)
         for name, low in LOWER_BOUNDS.items():
             value = getattr(self, name)
             if value is not None and not value >= low:
                 raise JobTooLarge(f"options.{name}: {value:g} mm is below its lower bound of {low:g} mm "
                                   "(finer buys no accuracy, only work; see EngineOptions)")
+
+    def _choose(self, name: str, kind: type[StrEnum], choices: tuple[StrEnum, ...]) -> None:
+        """Store field ``name`` as its enum member, or refuse a value that is not one of ``choices``."""
+        value = getattr(self, name)
+        try:
+            member = kind(value)
+        except ValueError:
+            member = None
+        if member not in choices:
+            raise InputError(f"options.{name}: {value!r} is not one of " + ", ".join(repr(c.value) for c in choices))
+        object.__setattr__(self, name, member)
 
     @property
     def exact(self) -> bool:
