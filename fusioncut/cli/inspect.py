@@ -120,14 +120,9 @@ def _read_gcode(path: Path, tools: dict[int, MillingTool] | None, strict: bool,
                 max_moves: int | None) -> tuple[Toolpath, list[str]]:
     """Read G-code as :func:`fusioncut.io.gcode.read_gcode` does, noting the units of every block
     that moves (a program may switch between G20 and G21)."""
-    from fusioncut.io.gcode import GCodeInterpreter
+    from fusioncut.io.gcode import GCodeInterpreter, read_gcode_text
 
-    raw = _read_bytes(path)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    interp = GCodeInterpreter(text, source=str(path), tools=tools or None, strict=strict, max_moves=max_moves)
+    interp = GCodeInterpreter(read_gcode_text(path), source=str(path), tools=tools or None, strict=strict, max_moves=max_moves)
     units: list[str] = []
     # as in GCodeInterpreter.run: the moves are acyclic, so the cyclic collector only costs time
     was_enabled = gc.isenabled()
