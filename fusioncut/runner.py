@@ -211,9 +211,9 @@ def prepare_job(job: Job, base: Path) -> PreparedJob:
     if stock is None:
         from fusioncut.io.stock import infer_stock, stock_top
 
-        stock = infer_stock(toolpath, margin=job.stock.margin, top=job.stock.top)
-        rule = "the top given" if job.stock.top is not None else f"top: {stock_top(toolpath)[1]}"
-        log.warning("stock inferred from the toolpath extents: %s .. %s (%s)", stock.minimum, stock.maximum, rule)
+        top, rule = (job.stock.top, "the top given") if job.stock.top is not None else stock_top(toolpath)
+        stock = infer_stock(toolpath, margin=job.stock.margin, top=top)
+        log.warning("stock inferred from the toolpath extents: %s .. %s (top: %s)", stock.minimum, stock.maximum, rule)
     engine_opts = job.options.model_dump(exclude=set(RUN_OPTIONS))
     return PreparedJob(toolpath, stock, EngineOptions(**engine_opts), default_tool, job_hash(job, base),
                        job.options.checkpoint_every, tuple(job.options.snapshot_cls), job.options.workers,
