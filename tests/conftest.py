@@ -42,3 +42,23 @@ def lying_archive():
         struct.pack_into("<I", raw, raw.rindex(b"PK\x01\x02") + 24, header_size)  # central directory
         path.write_bytes(bytes(raw))
     return make
+
+
+@pytest.fixture
+def frontend_packages():
+    """The front end's npm packages (three.js and Swagger UI, from `npm ci` in frontend/), which the 3D
+    view and the service's pages serve: a test that needs them skips without them, unless CI requires
+    them (``FUSIONCUT_REQUIRE_BROWSER=1``, ``.ci/run``)."""
+    from fusioncut.errors import FusionCutError
+    from fusioncut.service.settings import default_frontend_dir
+    from fusioncut.viz.scene import three_dir
+
+    swagger = default_frontend_dir() / "node_modules" / "swagger-ui-dist" / "swagger-ui-bundle.js"
+    try:
+        three_dir()
+        if not swagger.is_file():
+            raise FileNotFoundError(f"Swagger UI not found ({swagger} is missing): run `npm ci` in frontend/")
+    except (FusionCutError, FileNotFoundError) as exc:
+        if os.environ.get("FUSIONCUT_REQUIRE_BROWSER") == "1":
+            pytest.fail(str(exc))
+        pytest.skip(str(exc))

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import os
 
 import pytest
 import trimesh
@@ -19,19 +18,6 @@ from fusioncut.viz.scene import glb_json
 
 runner = CliRunner()
 
-
-@pytest.fixture
-def three():
-    """`view` writes a page with three.js from `npm ci` in frontend/: skip without it, unless CI requires it."""
-    from fusioncut.errors import FusionCutError
-    from fusioncut.viz.scene import three_dir
-
-    try:
-        three_dir()
-    except FusionCutError as exc:
-        if os.environ.get("FUSIONCUT_REQUIRE_BROWSER") == "1":
-            pytest.fail(str(exc))
-        pytest.skip(str(exc))
 
 GCODE = """(small job: a side pass, then a slot that stops inside the block)
 G21 G90 G17
@@ -77,7 +63,7 @@ def _ok(args):
     return res.output.replace("\n", "")
 
 
-def test_view_writes_page_and_glb(job, slot_end, tmp_path, three):
+def test_view_writes_page_and_glb(job, slot_end, tmp_path, frontend_packages):
     html, glb = tmp_path / "scene.html", tmp_path / "scene.glb"
     res = _ok(["view", str(job), "--cl", str(slot_end), "--out", str(html), "--glb", str(glb)])
     assert f"CL {slot_end} of" in res and "engaged" in res
@@ -94,7 +80,7 @@ def test_view_writes_page_and_glb(job, slot_end, tmp_path, three):
     assert set(scene.graph.nodes_geometry) >= {"ipw", "tool", "contact_faces"}
 
 
-def test_view_demo(tmp_path, three):
+def test_view_demo(tmp_path, frontend_packages):
     html = tmp_path / "demo.html"
     res = _ok(["view", "demo", "--cl", "30", "--out", str(html)])  # the first face pass, in the block
     assert "CL 30 of" in res and "engaged" in res

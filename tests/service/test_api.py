@@ -262,13 +262,16 @@ def test_openapi_documents_the_api(client):
     assert "JobSubmission" in spec["components"]["schemas"] and "JobStatus" in spec["components"]["schemas"]
     schemes = spec["components"]["securitySchemes"]
     assert any(s.get("name") == "X-API-Key" and s.get("in") == "header" for s in schemes.values())
+
+
+def test_api_docs_page_serves_swagger_ui_from_the_front_ends_packages(client, frontend_packages):
     docs = client.get("/docs")  # Swagger UI from the front end's packages, not from a CDN
     assert docs.status_code == 200 and "/vendor/swagger-ui/swagger-ui-bundle.js" in docs.text
     assert "cdn" not in docs.text.lower()
     assert client.get("/vendor/swagger-ui/swagger-ui-bundle.js").status_code == 200
 
 
-def test_front_end_is_served_with_an_import_map(client):
+def test_front_end_is_served_with_an_import_map(client, frontend_packages):
     page = client.get("/")
     assert page.status_code == 200 and "importmap" in page.text
     imports = json.loads(page.text.split('<script type="importmap">')[1].split("</script>")[0])["imports"]

@@ -2,8 +2,8 @@
 page, watch its progress reach 100 %, open the results and check that the 3D view draws something;
 move the CL slider from an early CL to the last and see the workpiece change inside the part.
 
-Skipped when /usr/bin/chromium is missing, unless FUSIONCUT_REQUIRE_BROWSER=1 (CI), which makes a
-missing browser a failure.
+Skipped when /usr/bin/chromium or the front end's npm packages are missing, unless
+FUSIONCUT_REQUIRE_BROWSER=1 (CI), which makes either a failure.
 """
 from __future__ import annotations
 
@@ -18,6 +18,8 @@ CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
         "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run"]
 BACKGROUND = (0xF4, 0xF6, 0xF8)  # the 3D view's clear colour (frontend/src/view3d.js)
+
+pytestmark = pytest.mark.usefixtures("frontend_packages")  # the page loads three.js from them
 
 
 @pytest.fixture(scope="module")
