@@ -175,11 +175,12 @@ def test_a_running_job_shows_its_latest_cl_and_plots_so_far(browser, service, tm
         page, problems = _open(browser, service)
         page.goto(f"{service.url}/#/jobs/{job_id}")
         page.wait_for_selector("#job-state:text-is('running')", timeout=60_000)
-        page.wait_for_function("document.querySelector('canvas#view3d') && document.querySelector('canvas#view3d')"
-                               ".dataset.cl !== undefined", timeout=60_000)
-        page.wait_for_function("document.querySelector('#plot-program') && "
-                               "document.querySelector('#plot-program').naturalWidth > 0", timeout=60_000)
-        shown = int(page.locator("canvas#view3d").get_attribute("data-cl"))
+        # the CL shown is read in the same evaluation that finds it drawn: the page re-renders the job
+        # view (a new canvas, without data-cl until its CL is drawn) while the job runs
+        shown = page.wait_for_function(
+            "() => { const v = document.querySelector('canvas#view3d'), p = document.querySelector('#plot-program');"
+            " return v && v.dataset.cl !== undefined && p && p.naturalWidth > 0 ? {cl: Number(v.dataset.cl)} : null; }",
+            timeout=60_000).json_value()["cl"]
         state = c.get(f"/api/jobs/{job_id}").json()
         page.screenshot(path=str(tmp_path / "running.png"), full_page=True)
         # the view follows the job: a later CL is drawn as more are finished
