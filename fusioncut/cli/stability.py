@@ -105,6 +105,11 @@ def stability(
     console.print(f"stability of {len(known)} CL(s) ({escape(s.coefficients.name)}, Ktc "
                   f"{s.coefficients.ktc:g} N/mm²): {len(chatter)} with margin >= 1 (chatter predicted), largest "
                   f"margin {known['margin'].max() if len(known) else math.nan:.3g}", highlight=False)
+    no_speed = int(((table["status"] == "engaged") & table["spindle_rpm"].isna()).sum())
+    if no_speed:
+        console.print(f"[yellow]note:[/] {no_speed} engaged CL(s) without a spindle speed have no limit (the "
+                      "program sets none there): give --rpm, or --program for a folder that does not record "
+                      "the speeds", highlight=False)
     no_sd = int((known["a_lim_sd_mm"].isna() & (known["status"] == "engaged")).sum()) if sd else 0
     if no_sd:
         console.print(f"[yellow]note:[/] {no_sd} engaged CL(s) without an SD limit: at their speed a tooth period "

@@ -540,3 +540,28 @@ def test_stability_command_modes_per_tool(tmp_path) -> None:
                        (["--modes", str(every), "--modes", str(stiff)], "a second file for every tool")):
         r = CliRunner().invoke(app, base + extra)
         assert r.exit_code == 2 and msg in " ".join(r.output.split()), r.output
+
+
+def test_stability_command_notes_cls_without_a_spindle_speed(tmp_path) -> None:
+    """A folder whose program sets no S word (the demo's) records no speed: the engaged CLs get no limit,
+    and the command says how many and what to give instead of reporting 'stability of 0 CL(s)' alone."""
+    import typer
+    from typer.testing import CliRunner
+
+    from fusioncut.cli.stability import register
+
+    app = typer.Typer()
+    register(app)
+    app.command("noop")(lambda: None)
+    _results(tmp_path / "res")
+    modes = Path(__file__).parents[2] / "docs" / "stability_modes_example.json"
+    args = ["stability", str(tmp_path / "res"), "--modes", str(modes), "--slice-height", "0.5", "--no-sd",
+            "--no-plot", "--out", str(tmp_path / "stab")]
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 0, r.output
+    text = " ".join(r.output.split())
+    assert "stability of 0 CL(s)" in text
+    assert "2 engaged CL(s) without a spindle speed have no limit" in text and "give --rpm" in text, r.output
+    r = CliRunner().invoke(app, args + ["--rpm", "9000"])
+    assert r.exit_code == 0 and "without a spindle speed" not in r.output, r.output
+
