@@ -6,8 +6,9 @@ version of :mod:`fusioncut.analysis.stability` in the same run.
 
 * **ZOA per CL**: :func:`~fusioncut.analysis.stability.stability_table` without SD (ZOA limit, margin
   and nearest stable speed of every CL) over ``--cls`` synthetic CLs whose engagements all differ (no
-  two share a computation: the worst case) or over the maps of a results folder (``--results``).
-  CPU ms per CL, the best of two runs after a warm-up.
+  two share a computation: the worst case) or over the maps of a results folder (``--results``, rebuilt
+  at the slice height the folder records; ``--slice-height`` for older folders), every CL at ``--rpm``
+  with one 10 mm tool of ``--flutes``. CPU ms per CL, the best of two runs after a warm-up.
 * **SD lobes**: :func:`~fusioncut.analysis.stability.sd_a_lim` at ``--speeds`` speeds (200) for one
   CL, the ZOA limits as reference depths, on two systems: the 1-DOF milling benchmark of Insperger &
   Stepan (922 Hz, a/D 0.1 down-milling, 2 flutes) and the three modes of
@@ -73,6 +74,19 @@ def synthetic_maps(count: int, seed: int = 0) -> list[EngagementMap]:
     return maps
 
 
+def results_maps(folder: Path, dz: float | None = None) -> tuple[list[EngagementMap], float]:
+    """The engagement maps of a results folder and the slice height (mm) they were computed with: the
+    recorded one (:func:`~fusioncut.analysis.result_maps.results_slice_height`), ``dz`` only for a
+    folder written before it was recorded (an :class:`~fusioncut.errors.InputError` naming the folder
+    asks for it otherwise)."""
+    from fusioncut.analysis.result_maps import engagement_maps_from_results, results_slice_height
+    from fusioncut.io.results import load_results
+
+    results = load_results(folder)
+    dz = results_slice_height(results, dz)
+    return engagement_maps_from_results(results, dz), dz
+
+
 def cpu(fn, repeat: int = 1) -> float:
     best = math.inf
     for _ in range(repeat):
@@ -118,25 +132,22 @@ def bench_sd(mod, case, speeds: int) -> tuple[float, np.ndarray]:
     return t, out["lim"]
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cls", type=int, default=1000, help="synthetic CLs (default 1000)")
     ap.add_argument("--results", type=Path, help="a results folder instead of synthetic CLs")
+    ap.add_argument("--slice-height", type=float, help="with --results: the slice height (mm) of a folder "
+                    "written before it was recorded")
     ap.add_argument("--rpm", type=float, default=10000.0)
     ap.add_argument("--flutes", type=int, default=3)
     ap.add_argument("--speeds", type=int, default=200)
     ap.add_argument("--baseline", default=BASELINE, help=f"git revision of the baseline (default {BASELINE})")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     base = load_baseline(args.baseline)
     dyn = read_modes_json(ROOT / "docs" / "stability_modes_example.json")
     tool = FlatEndMill(diameter=10.0, flute_length=20.0, flutes=args.flutes, helix_angle=30.0)
     if args.results:
-        from fusioncut.analysis.forces import engagement_maps_from_results, infer_slice_height
-        from fusioncut.io.results import load_results
-
-        results = load_results(args.results)
-        dz = infer_slice_height(results)
-        maps = engagement_maps_from_results(results, dz)
+        maps, dz = results_maps(args.results, args.slice_height)
         label = f"{args.results} ({len(maps)} CLs)"
     else:
         maps, dz = synthetic_maps(args.cls), 0.5

@@ -565,3 +565,38 @@ def test_stability_command_notes_cls_without_a_spindle_speed(tmp_path) -> None:
     r = CliRunner().invoke(app, args + ["--rpm", "9000"])
     assert r.exit_code == 0 and "without a spindle speed" not in r.output, r.output
 
+
+def _speed_benchmark():
+    import importlib.util
+
+    path = Path(__file__).parents[2] / "benchmarks" / "stability_speed.py"
+    spec = importlib.util.spec_from_file_location("stability_speed_bench", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench
+
+
+def test_speed_benchmark_reads_a_results_folder(tmp_path) -> None:
+    """benchmarks/stability_speed.py --results rebuilds a folder's CLs at the slice height it records or,
+    for an older folder, the one given, and refuses to guess (it imported a slice-height guesser that no
+    longer exists, so --results failed with an ImportError)."""
+    from fusioncut.errors import InputError
+
+    bench = _speed_benchmark()
+    maps = _results(tmp_path / "res")
+    got, dz = bench.results_maps(tmp_path / "res", 0.5)
+    assert dz == 0.5 and [m.cl_index for m in got] == [m.cl_index for m in maps]
+    assert [m.slices for m in got[:2]] == [m.slices for m in maps[:2]]
+    with pytest.raises(InputError, match="slice"):
+        bench.results_maps(tmp_path / "res")
+
+
+@pytest.mark.slow
+def test_speed_benchmark_runs_on_a_results_folder(tmp_path, capsys) -> None:
+    """The benchmark end to end on a folder's 4 CLs and 2 speeds (the baseline its own revision): every
+    timing line is printed. Seconds: the ZOA pass is compiled for both copies."""
+    bench = _speed_benchmark()
+    _results(tmp_path / "res")
+    bench.main(["--results", str(tmp_path / "res"), "--slice-height", "0.5", "--speeds", "2", "--baseline", "HEAD"])
+    out = capsys.readouterr().out
+    assert f"ZOA per CL, {tmp_path / 'res'} (4 CLs)" in out and out.count("SD lobes, 2 speeds") == 2, out
