@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.sweeps import arc_depth, end_velocity, sweep_lower
+from fusioncut.engines.analytic.sweeps import arc_depth, end_velocity, sweep_floor, sweep_lower
 
 N_SCAN = 720
 ANGLE_TOL = 1e-10  # rad
@@ -57,6 +57,8 @@ def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
         if C[j, 3] > pz + eps and C[j, 6] > pz + eps:
             continue  # the whole sweep is above the point
         k = int(C[j, 12])
+        if sweep_floor(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) > pz + eps:
+            continue  # its lower surface is above the point everywhere near it
         if sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) <= pz + eps:
             return False
     return True
@@ -187,6 +189,8 @@ def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
         if C[j, 3] - eps - pz >= m and C[j, 6] - eps - pz >= m:
             continue  # its lower surface is nowhere below its path's lowest tip
         k = int(C[j, 12])
+        if sweep_floor(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) - eps - pz >= m:
+            continue
         h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) - eps - pz
         if h < m:
             m = h

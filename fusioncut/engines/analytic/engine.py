@@ -297,10 +297,12 @@ def contact_range(args: tuple, flute_length: float, dz: float, levels: list[floa
     """The flute contact's height range (mm above the tip) of the tool at the end of ``args``' sweep
     (``args`` as :func:`.contact.slice_arcs` takes them, less the height, radius and slope), or None.
 
-    Heights every quarter of ``dz`` and just above and below each machine height of ``levels``
-    (the stock's top, the earlier sweeps' ends) are tested; each change between neighbours is
-    bisected to :data:`Z_TOL`."""
-    row, pieces = args[0], args[1]
+    The candidate heights are every quarter of ``dz`` and just above and below each machine height
+    of ``levels`` (the stock's top, the earlier sweeps' ends), within the flutes and the stock's
+    height. The lowest touching candidate is found walking up from the bottom, the highest walking
+    down from the top (the heights between them are not tested); the change from its untouched
+    neighbour is bisected to :data:`Z_TOL`."""
+    row, pieces, stock = args[0], args[1], args[8]
     ez = row[6]
 
     def touches(zs: float) -> bool:
@@ -309,17 +311,21 @@ def contact_range(args: tuple, flute_length: float, dz: float, levels: list[floa
             return False
         return bool(slice_touches(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:], N_TOUCH))
 
-    zs = {min(1e-9, flute_length), flute_length}
+    top = min(flute_length, stock[5] - ez + 1e-7)  # no material above the stock's top
+    if top <= 0:
+        return None
+    zs = {min(1e-9, top), top}
     step = dz / 4
-    zs.update(step * k for k in range(1, math.ceil(flute_length / step)))
+    zs.update(step * k for k in range(1, math.ceil(top / step)))
     for level in levels:
         for z in (level - ez - 1e-7, level - ez + 1e-7):
-            if 0 < z < flute_length:
+            if 0 < z < top:
                 zs.add(z)
-    grid = sorted(zs)
-    on = [touches(z) for z in grid]
-    if not any(on):
+    grid = sorted(z for z in zs if z > stock[2] - ez - 1e-7)  # nor below its bottom
+    first = next((i for i, z in enumerate(grid) if touches(z)), None)
+    if first is None:
         return None
+    last = next(i for i in range(len(grid) - 1, first - 1, -1) if i == first or touches(grid[i]))
 
     def edge(a: float, b: float, on_a: bool) -> float:
         while b - a > Z_TOL:
@@ -330,8 +336,6 @@ def contact_range(args: tuple, flute_length: float, dz: float, levels: list[floa
                 b = m
         return 0.5 * (a + b)
 
-    first = on.index(True)
-    last = len(on) - 1 - on[::-1].index(True)
-    lo = 0.0 if first == 0 else edge(grid[first - 1], grid[first], False)
-    hi = flute_length if last == len(on) - 1 else edge(grid[last], grid[last + 1], True)
+    lo = 0.0 if first == 0 and grid[0] <= 1e-9 else edge(grid[first - 1] if first else 0.0, grid[first], False)
+    hi = flute_length if last == len(grid) - 1 and top >= flute_length else edge(grid[last], grid[last + 1] if last + 1 < len(grid) else top + 1e-7, True)
     return (lo, hi)

@@ -13,9 +13,11 @@ table. With the lower profile ``f`` (radius ``R``), the sweep removes every poin
     lower surface  L(p) = min over t with |p - c(t)| <= R of  z(t) + f(|p - c(t)|)      (xy distances)
 
 and ``L = inf`` outside its footprint. On a line ``z(t) + f(d(t))`` is convex in ``t`` (``d`` is
-convex, ``f`` convex and non-decreasing), so its minimum is found by bisection on the sign of its
-derivative to ~1e-16 in ``t`` (closed forms where the derivative keeps a sign, a flat end mill's
-ramps, and on level moves: there the lowest tool is the one nearest ``p``). On an arc the points within ``R`` form windows of angle around the
+convex, ``f`` convex and non-decreasing), so its minimum is bracketed by the sign of its
+derivative ``g`` and the bracket ``[lo, hi]`` is shrunk (Illinois steps on ``g``, every third step a
+bisection) until convexity bounds the value's error, ``min(-g(lo), g(hi)) (hi - lo)``, by
+:data:`VALUE_TOL` (closed forms where the derivative keeps a sign, a flat end mill's ramps, and on
+level moves: there the lowest tool is the one nearest ``p``). On an arc the points within ``R`` form windows of angle around the
 direction of ``p``; each window is sampled at :data:`ARC_STEP` rad at most and every sampled local
 minimum is refined by golden section to ~1e-14 in ``t``: minima closer together than the step
 could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``.
@@ -39,6 +41,7 @@ LINE, ARC = 0.0, 1.0
 ARC_STEP = 0.05  # rad: the arc windows' sampling step
 _GOLDEN = 0.6180339887498949
 _BISECTIONS = 64
+VALUE_TOL = 1e-13  # mm: the error bound of a line sweep's lower surface (module docstring)
 _GOLDEN_STEPS = 72
 
 
@@ -110,14 +113,41 @@ def line_lower(S, P, R, px, py, eps):
         return _line_value(S, P, R, px, py, lo)
     if _line_slope(S, P, R, px, py, hi) <= 0.0:
         return _line_value(S, P, R, px, py, hi)
-    for _ in range(_BISECTIONS):
+    return _convex_min(S, P, R, px, py, lo, hi)
+
+
+@njit(cache=True)
+def _convex_min(S, P, R, px, py, lo, hi):
+    """min of the convex z(t) + f(d(t)) on [lo, hi] where its slope goes from < 0 to > 0: Illinois
+    steps on the slope (a bisection every third step, or where a slope is infinite), until the
+    convexity bound on the value's error is within :data:`VALUE_TOL` or the bracket is a float apart."""
+    glo = _line_slope(S, P, R, px, py, lo)
+    ghi = _line_slope(S, P, R, px, py, hi)
+    wlo, whi = glo, ghi  # the slopes the secant uses: Illinois halves the one kept twice
+    side = 0
+    for it in range(2 * _BISECTIONS):
+        if min(-glo, ghi) * (hi - lo) <= VALUE_TOL:
+            break
         mid = 0.5 * (lo + hi)
+        if it % 3 != 2 and math.isfinite(wlo) and math.isfinite(whi):
+            m = lo - wlo * (hi - lo) / (whi - wlo)
+            if lo < m < hi:
+                mid = m
         if mid <= lo or mid >= hi:
             break
-        if _line_slope(S, P, R, px, py, mid) < 0.0:
-            lo = mid
+        g = _line_slope(S, P, R, px, py, mid)
+        if g < 0.0:
+            lo, glo, wlo = mid, g, g
+            if side == -1:
+                whi *= 0.5
+            side = -1
+        elif g > 0.0:
+            hi, ghi, whi = mid, g, g
+            if side == 1:
+                wlo *= 0.5
+            side = 1
         else:
-            hi = mid
+            return _line_value(S, P, R, px, py, mid)
     return min(_line_value(S, P, R, px, py, lo), _line_value(S, P, R, px, py, hi))
 
 
@@ -226,6 +256,38 @@ def sweep_lower(S, P, R, px, py, eps):
     if S[0] == 0.0:
         return line_lower(S, P, R, px, py, eps)
     return arc_lower(S, P, R, px, py, eps)
+
+
+@njit(cache=True)
+def sweep_floor(S, P, R, px, py, eps):
+    """A lower bound (mm) of :func:`sweep_lower` at ``p``, in closed form: the path's lowest tip
+    height plus ``f`` at the least XY distance from ``p`` to the path (``z(t) >= min z`` and ``f``
+    grows outward); inf outside the footprint widened by ``eps``. It lets a caller skip a sweep
+    whose lower surface cannot be below a height it already has."""
+    if S[0] == 0.0:
+        ux, uy = S[4] - S[1], S[5] - S[2]
+        qx, qy = px - S[1], py - S[2]
+        uu = ux * ux + uy * uy
+        t = 0.0 if uu <= 0.0 else min(max((qx * ux + qy * uy) / uu, 0.0), 1.0)
+        dx, dy = qx - t * ux, qy - t * uy
+        d = math.sqrt(dx * dx + dy * dy)
+    else:
+        qx, qy = px - S[7], py - S[8]
+        Q = math.sqrt(qx * qx + qy * qy)
+        sw = S[11]
+        inside = abs(sw) >= 2.0 * math.pi or Q <= 0.0
+        if not inside:  # is the direction of p within the arc's angular span?
+            off = (math.atan2(qy, qx) - S[10]) % (2.0 * math.pi)
+            inside = off <= sw if sw > 0.0 else off - 2.0 * math.pi >= sw
+        if inside:
+            d = abs(Q - S[9])
+        else:
+            d0 = math.sqrt((px - S[1]) ** 2 + (py - S[2]) ** 2)
+            d1 = math.sqrt((px - S[4]) ** 2 + (py - S[5]) ** 2)
+            d = min(d0, d1)
+    if d > R + eps:
+        return math.inf
+    return min(S[3], S[6]) + profile_height(P, d if d < R else R)
 
 
 @njit(cache=True)

@@ -12,9 +12,12 @@ smooth parts by **break points** found in closed form, the crossings of the line
 the footprints' boundary curves (circles about the path's ends and, for an arc, about its centre;
 segments parallel to a line's path, an arc's end radii). The inner integral over ``y`` between
 break points and the outer one over ``x`` (break points: the curves' extreme x) are adaptive
-Gauss-Kronrod (7, 15), each part split until QUADPACK's error estimate from the two rules is within
-``tol`` mm per mm of its length (inner, mm²) or mm² per mm (outer), down to parts of
-:data:`MIN_PART` mm.
+Gauss-Kronrod (7, 15) with a **global** error budget, as QUADPACK's QAG: the part with the largest
+error estimate (QUADPACK's, from the two rules) is halved until the estimates add up to the budget
+(or parts reach :data:`MIN_PART` mm). A budget per part's length would refine a crescent's tip, where
+the removed height starts from zero, down to :data:`MIN_PART`; a global one stops there once the
+tip's share of the error is small. The outer integral gets nine tenths of ``tol`` mm per mm² of
+the rectangle, each inner one a tenth (so that their errors do not look like a rough integrand).
 """
 from __future__ import annotations
 
@@ -23,9 +26,10 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.sweeps import sweep_lower
+from fusioncut.engines.analytic.sweeps import sweep_floor, sweep_lower
 
 MIN_PART = 1e-9  # mm
+_PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
 
 # Gauss-Kronrod 15-point nodes (on [-1, 1]) and weights; the Gauss 7-point weights at the odd nodes
 _XK = np.array([0.991455371120812639206854697526329, 0.949107912342758524526189684047851,
@@ -55,6 +59,8 @@ def removed_height(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
         if C[j, 3] >= high and C[j, 6] >= high:
             continue  # its lower surface is nowhere below its path's lowest tip
         k = int(C[j, 12])
+        if sweep_floor(C[j], PP[k, :NPC[k]], RR[k], px, py, 0.0) >= high:
+            continue  # its lower surface is nowhere below what is already the least
         h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, 0.0)
         if h < high:
             high = h
@@ -130,39 +136,57 @@ def _crossings_at_x(x, circles, segments, lo, hi):
 
 
 @njit(cache=True)
-def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol):
-    """Integral over y in [ylo, yhi] of the removed height at ``x`` (mm²)."""
-    pts = _crossings_at_x(x, circles, segments, ylo, yhi)
+def _worst(err, n):
+    """Index of the largest of err[:n], and the sum of err[:n]."""
+    k = 0
     total = 0.0
-    stack = np.empty((256, 2))
-    for p in range(pts.shape[0] - 1):
-        if pts[p + 1] - pts[p] <= 0.0:
-            continue
-        stack[0, 0], stack[0, 1] = pts[p], pts[p + 1]
-        n = 1
-        while n > 0:
-            n -= 1
-            a, b = stack[n, 0], stack[n, 1]
-            val, err = _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-            if err <= tol * (b - a) or b - a <= MIN_PART or n >= 254:
-                total += val
-            else:
-                m = 0.5 * (a + b)
-                stack[n, 0], stack[n, 1] = a, m
-                stack[n + 1, 0], stack[n + 1, 1] = m, b
-                n += 2
-    return total
+    for i in range(n):
+        total += err[i]
+        if err[i] > err[k]:
+            k = i
+    return k, total
 
 
 @njit(cache=True)
-def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol):
+def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget):
+    """Integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all."""
+    pts = _crossings_at_x(x, circles, segments, ylo, yhi)
+    lo = np.empty(_PANELS)
+    hi = np.empty(_PANELS)
+    val = np.empty(_PANELS)
+    err = np.empty(_PANELS)
+    n = 0
+    for p in range(pts.shape[0] - 1):
+        if pts[p + 1] - pts[p] > 0.0 and n < _PANELS:
+            lo[n], hi[n] = pts[p], pts[p + 1]
+            val[n], err[n] = _gk_y(x, lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            n += 1
+    while n < _PANELS:
+        k, total = _worst(err, n)
+        if total <= budget or err[k] == 0.0:
+            break
+        a, b = lo[k], hi[k]
+        if b - a <= MIN_PART:
+            err[k] = 0.0  # as fine as it goes: taken as it is
+            continue
+        m = 0.5 * (a + b)
+        hi[k] = m
+        val[k], err[k] = _gk_y(x, a, m, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        lo[n], hi[n] = m, b
+        val[n], err[n] = _gk_y(x, m, b, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        n += 1
+    return val[:n].sum()
+
+
+@njit(cache=True)
+def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget):
     k = 0.0
     g = 0.0
     m = 0.0
     for i in range(15):
         u, wk, wg = _node(i)
         x, w = _smooth(a, b, u)
-        f = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol) * w
+        f = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget) * w
         k += wk * f
         g += wg * f
         m += wk * abs(f)
@@ -171,26 +195,38 @@ def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt
 
 @njit(cache=True)
 def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol):
-    """The removed volume (mm³) over x between the sorted break points ``xs`` and y in [ylo, yhi]."""
-    total = 0.0
-    stack = np.empty((256, 2))
+    """The removed volume (mm³) over x between the sorted break points ``xs`` and y in [ylo, yhi],
+    to ``tol`` mm per mm² of that rectangle: a tenth of the budget goes to the inner integrals
+    (each line's error within a tenth of ``tol (yhi - ylo)``), the rest to the outer one."""
+    area = (xs[-1] - xs[0]) * (yhi - ylo)
+    budget = 0.9 * tol * area
+    inner = 0.1 * tol * (yhi - ylo)
+    lo = np.empty(_PANELS)
+    hi = np.empty(_PANELS)
+    val = np.empty(_PANELS)
+    err = np.empty(_PANELS)
+    n = 0
     for p in range(xs.shape[0] - 1):
-        if xs[p + 1] - xs[p] <= 0.0:
+        if xs[p + 1] - xs[p] > 0.0 and n < _PANELS:
+            lo[n], hi[n] = xs[p], xs[p + 1]
+            val[n], err[n] = _gk_x(lo[n], hi[n], ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt,
+                                   inner)
+            n += 1
+    while n < _PANELS:
+        k, total = _worst(err, n)
+        if total <= budget or err[k] == 0.0:
+            break
+        a, b = lo[k], hi[k]
+        if b - a <= MIN_PART:
+            err[k] = 0.0
             continue
-        stack[0, 0], stack[0, 1] = xs[p], xs[p + 1]
-        n = 1
-        while n > 0:
-            n -= 1
-            a, b = stack[n, 0], stack[n, 1]
-            val, err = _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol)
-            if err <= tol * (yhi - ylo) * (b - a) or b - a <= MIN_PART or n >= 254:
-                total += val
-            else:
-                m = 0.5 * (a + b)
-                stack[n, 0], stack[n, 1] = a, m
-                stack[n + 1, 0], stack[n + 1, 1] = m, b
-                n += 2
-    return total
+        m = 0.5 * (a + b)
+        hi[k] = m
+        val[k], err[k] = _gk_x(a, m, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner)
+        lo[n], hi[n] = m, b
+        val[n], err[n] = _gk_x(m, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner)
+        n += 1
+    return val[:n].sum()
 
 
 def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tuple[np.ndarray, np.ndarray]:
