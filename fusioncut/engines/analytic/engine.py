@@ -56,6 +56,7 @@ from fusioncut.model.tools import MillingTool
 
 WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts as cut (zero-thickness walls)
 VOLUME_EPS = 1e-12  # mm³: a CL removing less is idle (air, or a rapid through air)
+TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
 N_TOUCH = 360  # angles per height scanned for the contact's height range
 Z_TOL = 1e-10  # mm: the contact's height range
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
@@ -217,9 +218,14 @@ class AnalyticEngine:
         if removed <= VOLUME_EPS:
             outcome = CutOutcome(idle, method=SweepMethod.EXACT, timings=timings)
         else:
-            args = (row, profile.pieces, profile.radius, C, CB, PP, NPC, RR, stock, WALL_EPS)
+            # the slices are on the tool at the CL's end: only sweeps whose boxes reach it matter
+            ex, ey, reach = row[4], row[5], profile.radius + 2 * WALL_EPS
+            at_end = ((CB[:, 0] <= ex + reach) & (CB[:, 2] >= ex - reach) & (CB[:, 1] <= ey + reach)
+                      & (CB[:, 3] >= ey - reach))
+            Ce, CBe = C[at_end], CB[at_end]
+            args = (row, profile.pieces, profile.radius, Ce, CBe, PP, NPC, RR, stock, WALL_EPS)
             z_range = contact_range(args, tool.flute_length, self.options.slice_height,
-                                    [self.stock[5]] + list(C[:, 3]) + list(C[:, 6]))
+                                    [self.stock[5]] + list(Ce[:, 3]) + list(Ce[:, 6]))
             heights = slice_heights(z_range, tool, self.options.slice_height)
             for z, active in heights:
                 if not active:
@@ -227,7 +233,7 @@ class AnalyticEngine:
                     continue
                 r = profile_radius(profile.pieces, z)
                 found = slice_arcs(row, profile.pieces, profile.radius, z, r,
-                                   profile_radius_slope(profile.pieces, z), C, CB, PP, NPC, RR, stock, WALL_EPS,
+                                   profile_radius_slope(profile.pieces, z), Ce, CBe, PP, NPC, RR, stock, WALL_EPS,
                                    N_SCAN)
                 arcs.append([(float(a), float(w)) for a, w in found])
             timings["contact"] = (time.perf_counter() - t2) * 1e3
@@ -242,18 +248,35 @@ class AnalyticEngine:
 
     def _removed(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
                  box: tuple[float, float, float, float]) -> float:
+        """The CL's removed volume (mm³), integrated tile by tile (:func:`tiles`): each tile meets
+        only the earlier sweeps whose boxes overlap it and gets its share of the error budget."""
         s = self.stock
         x0, x1 = max(box[0], s[0]), min(box[2], s[3])
         y0, y1 = max(box[1], s[1]), min(box[3], s[4])
         if x0 >= x1 or y0 >= y1:
             return 0.0
         tables = self._tools
-        rows = np.vstack([row[None, :], C])
-        radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5])) for r in rows]
-        circles, segments = boundary_curves(rows, radii)
-        xs = x_breaks(circles, segments, x0, x1)
-        return float(removed_volume(xs, y0, y1, circles, segments, row, profile.pieces, profile.radius, C, CB,
-                                    tables.profiles, tables.counts, tables.radii, s[2], s[5], self.volume_tol))
+        total = 0.0
+        for tx0, ty0, tx1, ty1 in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius):
+            keep = (CB[:, 0] <= tx1) & (CB[:, 2] >= tx0) & (CB[:, 1] <= ty1) & (CB[:, 3] >= ty0)
+            Ct, CBt = C[keep], CB[keep]
+            rows = np.vstack([row[None, :], Ct])
+            radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5]))
+                     for r in rows]
+            circles, segments = boundary_curves(rows, radii)
+            xs = x_breaks(circles, segments, tx0, tx1)
+            total += removed_volume(xs, ty0, ty1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
+                                    tables.profiles, tables.counts, tables.radii, s[2], s[5], self.volume_tol)
+        return float(total)
+
+
+def tiles(x0: float, y0: float, x1: float, y1: float, size: float) -> list[tuple[float, float, float, float]]:
+    """The rectangle [x0, x1] x [y0, y1] cut into equal tiles (x0, y0, x1, y1) no wider than ``size``
+    (mm): a long CL's footprint meets hundreds of earlier sweeps, a point in it only those of its tile."""
+    nx, ny = max(1, math.ceil((x1 - x0) / size)), max(1, math.ceil((y1 - y0) / size))
+    xs = [x0 + (x1 - x0) * i / nx for i in range(nx)] + [x1]
+    ys = [y0 + (y1 - y0) * j / ny for j in range(ny)] + [y1]
+    return [(xs[i], ys[j], xs[i + 1], ys[j + 1]) for i in range(nx) for j in range(ny)]
 
 
 def _break_radii(row: np.ndarray, pieces: np.ndarray, levels: tuple[float, float]) -> tuple[float, ...]:
