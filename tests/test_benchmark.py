@@ -55,3 +55,25 @@ def test_quick_program_workpiece_stays_small_past_the_helix_where_a_merge_left_a
             break
     assert most_faces < 1000
     assert abs(engine.stock_volume - engine.ipw_volume - engine.removed_total) <= 1e-6 * engine.stock_volume
+
+
+@pytest.mark.slow
+def test_real_programs_benchmark_runs_both_engines_on_the_same_cls(tmp_path):
+    """The real-program benchmark on bear's first CLs: both engines run the same CLs without a
+    failure and remove the same volume (the B-Rep engine's steps differ from the exact ramps only
+    within its step tolerance: 1.3e-6 relative measured over 20 CLs)."""
+    import json
+
+    import real_programs
+    from shared_data import DATA
+
+    if not (DATA / "camotics-examples" / "bear" / "bear.nc").is_file():
+        pytest.skip("shared data missing")
+    out = tmp_path / "real.json"
+    assert real_programs.main(["--programs", "bear", "--cls", "6", "--windows", "1", "--out", str(out)]) == 0
+    (res,) = json.loads(out.read_text())
+    ana, brep = res["windows"]
+    assert (ana["engine"], brep["engine"]) == ("analytic", "brep")
+    assert ana["cls"] == brep["cls"] == 6 and ana["failed"] == brep["failed"] == 0
+    assert ana["removed_mm3"] > 1000  # the plunge and the first full-depth raster line
+    assert abs(res["removed_relative_difference"]) < 1e-5

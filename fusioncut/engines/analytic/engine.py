@@ -6,14 +6,16 @@ the sweeps of CLs 0..k-1 (:mod:`.sweeps`; the tool extends straight up, as a 3-a
 and holder do). Nothing is built or kept but the sweeps themselves (one row each, :mod:`.index`):
 
 * the **removed volume** of CL k integrates ``min(h_k, top) - max(L_k, bottom)`` over its
-  footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint;
+  footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint, tile by tile
+  (:func:`tiles`: a tile meets only the earlier sweeps whose boxes overlap it);
 * its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
   where material was before the CL and the tool's surface is on the sweep's front, their ends
   bisected to 1e-10 rad; the slices are laid out and converted to immersion angles as the B-Rep
   engine does (:func:`fusioncut.engines.brep.engine.slice_heights`, ``engagement_map``), so the
   output is the same :class:`~fusioncut.model.engagement.EngagementMap` per CL;
-* the flute contact's height range (``ap``) is bracketed on heights every quarter slice and at
-  the heights of the stock's top and the earlier sweeps' ends, then bisected to 1e-10 mm;
+* the flute contact's height range (``ap``): the lowest and highest touching heights among the
+  quarter slices and the heights of the stock's top and the earlier sweeps' ends (walking up from
+  the bottom and down from the stock's top), each bisected against its neighbour to 1e-10 mm;
 * the earlier sweeps near the CL come from a grid index of their footprints, where the CLs of one
   move are one sweep (:class:`.index.SweepIndex`).
 

@@ -1,0 +1,178 @@
+"""Benchmark: the analytic engine on real 3-axis programs, with the B-Rep engine on the same CLs as the ratio.
+
+    python benchmarks/real_programs.py                       # every program, 30 CLs a window
+    python benchmarks/real_programs.py --programs bear,wave --cls 60 --windows 3
+    python benchmarks/real_programs.py --no-brep --out real.json
+
+The programs are the 3-axis programs of ``../shared/data`` that issue 26 names (CAMotics bear, cameo,
+flower_mold, wave, botomata; LinuxCNC 3D_Chips where a tool is known; the Fusion posts), each with
+its project's tools and workpiece where it has a CAMotics project, else its own tool comments and
+the stock the runner infers (:func:`fusioncut.io.stock.infer_stock`).
+
+Since the workpiece before a CL follows from the path, the analytic engine starts a window at any
+CL (:meth:`AnalyticEngine.process` with ``start_at``: the sweeps before it are only indexed), so its
+windows are spread over the program: the first at CL 0, the others evenly up to the last CLs. The
+B-Rep engine runs the first window only (a later one would need the whole program replayed before
+it); the ratio of the means and the relative difference of the removed volumes are taken there, on
+the same CLs.
+
+Per program and window: the first CL, CLs, CLs that removed material, failed CLs, the mean, median
+and p95 wall time per CL (ms, over every CL of the window: air moves count, as in a program's total
+time), and the volume removed (mm³). ``growth`` is the analytic engine's mean over the last window
+divided by its mean over the first. The numba kernels are compiled (or loaded from their cache)
+before the clock starts. ``--out`` writes the figures as JSON.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from fusioncut.engines.analytic.engine import AnalyticEngine
+from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.cl_maps import cl_sequence
+from fusioncut.io.readers import read_toolpath
+from fusioncut.io.stock import infer_stock
+from fusioncut.io.tool_library import read_camotics_project
+from fusioncut.model import CLStatus, MillingTool, Stock, Toolpath
+
+SHARED = Path(os.environ.get("FUSIONCUT_SHARED_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data")
+
+
+@dataclass(frozen=True)
+class Program:
+    name: str
+    path: str  # the G-code, relative to the shared data folder
+    project: str | None = None  # a CAMotics project giving the tools and the workpiece
+
+
+PROGRAMS = (
+    Program("bear", "camotics-examples/bear/bear.nc", "camotics-examples/bear/bear.camotics"),
+    Program("wave", "camotics-examples/wave/wave.gcode", "camotics-examples/wave/wave.camotics"),
+    Program("cameo", "camotics-examples/cameo/cameo.nc", "camotics-examples/cameo/cameo.camotics"),
+    Program("flower_mold", "camotics-examples/flower_mold/flower_mold.nc",
+            "camotics-examples/flower_mold/flower_mold.camotics"),
+    Program("botomata", "camotics-examples/botomata_bottom/botomata_bottom.nc",
+            "camotics-examples/botomata_bottom/botomata_bottom.camotics"),
+    Program("1055_utab", "fusion-posted/1055_utab_265bit.nc"),
+    Program("1110_wall", "fusion-posted/1110_wall_265bit.nc"),
+    Program("1117_wall", "fusion-posted/1117_wall_28bit.nc"),
+    Program("1072_face", "fusion-posted/1072_face_otherside.nc"),
+)
+
+
+def load(program: Program) -> tuple[Toolpath, Stock, MillingTool | None]:
+    """The program's toolpath, stock (its project's workpiece, else the inferred one) and the tool of
+    moves that name none (a project's only tool, as CAMotics takes it; else None)."""
+    if program.project:
+        project = read_camotics_project(SHARED / program.project)
+        toolpath = read_toolpath(SHARED / program.path, tools=dict(project.tools))
+        default = next(iter(project.tools.values())) if len(project.tools) == 1 else None
+        return toolpath, project.stock or infer_stock(toolpath), default
+    toolpath = read_toolpath(SHARED / program.path)
+    return toolpath, infer_stock(toolpath), None
+
+
+def summary(times: list[float]) -> dict:
+    ordered = sorted(times)
+    return {"mean_ms": statistics.fmean(times), "median_ms": statistics.median(times),
+            "p95_ms": ordered[min(len(ordered) - 1, math.ceil(0.95 * len(ordered)) - 1)]}
+
+
+def timed(maps, count: int) -> dict:
+    """Time ``count`` maps of the iterator ``maps`` (or as many as it has)."""
+    times, removed, cut, failed = [], 0.0, 0, 0
+    t0 = time.perf_counter()
+    for m in maps:
+        t1 = time.perf_counter()
+        times.append((t1 - t0) * 1e3)
+        removed += m.removed_volume
+        cut += m.removed_volume > 0
+        failed += m.status == CLStatus.FAILED
+        if len(times) >= count:
+            break
+        t0 = time.perf_counter()
+    if not times:
+        return {"cls": 0}
+    return {"cls": len(times), "cut": cut, "failed": failed, "removed_mm3": removed, **summary(times)}
+
+
+def run_program(program: Program, options: EngineOptions, cls: int, windows: int, brep: bool) -> dict:
+    toolpath, stock, default = load(program)
+    total = sum(1 for _ in cl_sequence(toolpath, options, default))
+    starts = sorted({0, *(round(k * (total - cls) / max(windows - 1, 1)) for k in range(1, windows))})
+    starts = [s for s in starts if 0 <= s < total]
+    out: dict = {"program": program.name, "cls_in_program": total, "stock": repr(stock), "windows": []}
+    for start in starts:
+        engine = AnalyticEngine(options)
+        engine.start(stock)
+        # the sweeps before the window are indexed while the first CL is asked for: start one CL
+        # early and leave that CL off the clock
+        maps = engine.process(toolpath, default, start_at=max(start - 1, 0))
+        if start > 0:
+            next(maps, None)
+        row = timed(maps, cls)
+        out["windows"].append({"engine": "analytic", "start": start, **row})
+    if brep:
+        from fusioncut.engines.brep.engine import BRepEngine
+        row = timed(BRepEngine(options).run(toolpath, stock, default), cls)
+        out["windows"].append({"engine": "brep", "start": 0, **row})
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--programs", default=",".join(p.name for p in PROGRAMS),
+                        help="comma-separated names (default: all)")
+    parser.add_argument("--cls", type=int, default=30, help="CLs per window")
+    parser.add_argument("--windows", type=int, default=2, help="analytic windows spread over each program")
+    parser.add_argument("--slice-height", type=float, default=1.0, help="mm")
+    parser.add_argument("--no-brep", action="store_true", help="time the analytic engine only")
+    parser.add_argument("--out", type=Path, help="write the figures as JSON here")
+    args = parser.parse_args(argv)
+    chosen = [p for p in PROGRAMS if p.name in args.programs.split(",")]
+    options = EngineOptions(slice_height=args.slice_height)
+    # numba: compile or load the kernels before any clock starts
+    warm_tp, warm_stock, _ = load(PROGRAMS[0])
+    list(AnalyticEngine(options).run(Toolpath(warm_tp.moves[:4], warm_tp.tools), warm_stock))
+    results = []
+    print(f"{'program':12s} {'engine':8s} {'start':>6s} {'CLs':>4s} {'cut':>4s} {'fail':>4s} {'mean ms':>9s} "
+          f"{'median':>8s} {'p95':>8s} {'removed mm3':>12s}")
+    for program in chosen:
+        try:
+            res = run_program(program, options, args.cls, args.windows, not args.no_brep)
+        except Exception as exc:  # a program this engine cannot take is reported, not fatal to the others
+            print(f"{program.name:12s} not run: {type(exc).__name__}: {exc}")
+            results.append({"program": program.name, "error": f"{type(exc).__name__}: {exc}"})
+            continue
+        for w in res["windows"]:
+            if not w["cls"]:
+                continue
+            print(f"{program.name:12s} {w['engine']:8s} {w['start']:6d} {w['cls']:4d} {w['cut']:4d} {w['failed']:4d} "
+                  f"{w['mean_ms']:9.1f} {w['median_ms']:8.1f} {w['p95_ms']:8.1f} {w['removed_mm3']:12.4f}")
+        ana = [w for w in res["windows"] if w["engine"] == "analytic" and w["cls"]]
+        brep = [w for w in res["windows"] if w["engine"] == "brep" and w["cls"]]
+        if len(ana) > 1:
+            res["growth"] = ana[-1]["mean_ms"] / ana[0]["mean_ms"]
+        if brep and ana and ana[0]["cls"] == brep[0]["cls"]:
+            res["mean_ratio_brep_over_analytic"] = brep[0]["mean_ms"] / ana[0]["mean_ms"]
+            res["removed_relative_difference"] = ((ana[0]["removed_mm3"] - brep[0]["removed_mm3"])
+                                                  / max(abs(brep[0]["removed_mm3"]), 1e-12))
+        facts = [f"{k} {res[k]:.3g}" for k in ("growth", "mean_ratio_brep_over_analytic", "removed_relative_difference")
+                 if k in res]
+        if facts:
+            print(f"{'':12s} {', '.join(facts)}")
+        results.append(res)
+    if args.out:
+        args.out.write_text(json.dumps(results, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
