@@ -3,6 +3,7 @@
     python benchmarks/real_programs.py                       # every program, 30 CLs a window
     python benchmarks/real_programs.py --programs bear,wave --cls 60 --windows 3
     python benchmarks/real_programs.py --no-brep --out real.json
+    python benchmarks/real_programs.py --programs bear --cls 200 --windows 1 --no-brep --workers 2
 
 The programs are the 3-axis programs of ``../shared/data`` that issue 26 names (CAMotics bear, cameo,
 flower_mold, wave, botomata; LinuxCNC 3D_Chips where a tool is known; the Fusion posts), each with
@@ -20,7 +21,12 @@ Per program and window: the first CL, CLs, CLs that removed material, failed CLs
 and p95 wall time per CL (ms, over every CL of the window: air moves count, as in a program's total
 time), and the volume removed (mm³). ``growth`` is the analytic engine's mean over the last window
 divided by its mean over the first. The numba kernels are compiled (or loaded from their cache)
-before the clock starts. ``--out`` writes the figures as JSON.
+before the clock starts, in every worker too. ``--out`` writes the figures as JSON.
+
+``--workers N`` also runs the first window with the parallel analytic engine on an embedded Dask
+cluster of N processes (:mod:`fusioncut.engines.analytic.parallel`): ``parallel_speedup`` is the
+single-process mean over the parallel one on the same CLs, ``parallel_serial_fraction`` the share
+of the parallel run's wall time the driver worked alone, and the removed volumes must be equal.
 """
 from __future__ import annotations
 
@@ -103,7 +109,14 @@ def timed(maps, count: int) -> dict:
     return {"cls": len(times), "cut": cut, "failed": failed, "removed_mm3": removed, **summary(times)}
 
 
-def run_program(program: Program, options: EngineOptions, cls: int, windows: int, brep: bool) -> dict:
+def warm_kernels() -> None:
+    """Compile (or load from numba's cache) the analytic engine's kernels in this process."""
+    toolpath, stock, _ = load(PROGRAMS[0])
+    list(AnalyticEngine(EngineOptions()).run(Toolpath(toolpath.moves[:4], toolpath.tools), stock))
+
+
+def run_program(program: Program, options: EngineOptions, cls: int, windows: int, brep: bool,
+                workers: int = 1) -> dict:
     toolpath, stock, default = load(program)
     total = sum(1 for _ in cl_sequence(toolpath, options, default))
     starts = sorted({0, *(round(k * (total - cls) / max(windows - 1, 1)) for k in range(1, windows))})
@@ -119,6 +132,14 @@ def run_program(program: Program, options: EngineOptions, cls: int, windows: int
             next(maps, None)
         row = timed(maps, cls)
         out["windows"].append({"engine": "analytic", "start": start, **row})
+    if workers > 1:
+        from fusioncut.engines.analytic.parallel import ParallelAnalyticEngine
+
+        with ParallelAnalyticEngine(options, workers=workers) as engine:
+            engine.run_on_workers(warm_kernels)
+            row = timed(engine.run(toolpath, stock, default), cls)
+            out["windows"].append({"engine": f"analytic x{workers}", "start": 0, **row,
+                                   "serial_fraction": engine.serial_fraction})
     if brep:
         from fusioncut.engines.brep.engine import BRepEngine
         row = timed(BRepEngine(options).run(toolpath, stock, default), cls)
@@ -134,19 +155,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--windows", type=int, default=2, help="analytic windows spread over each program")
     parser.add_argument("--slice-height", type=float, default=1.0, help="mm")
     parser.add_argument("--no-brep", action="store_true", help="time the analytic engine only")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="also run the first window on this many Dask workers (the parallel analytic engine)")
     parser.add_argument("--out", type=Path, help="write the figures as JSON here")
     args = parser.parse_args(argv)
     chosen = [p for p in PROGRAMS if p.name in args.programs.split(",")]
     options = EngineOptions(slice_height=args.slice_height)
-    # numba: compile or load the kernels before any clock starts
-    warm_tp, warm_stock, _ = load(PROGRAMS[0])
-    list(AnalyticEngine(options).run(Toolpath(warm_tp.moves[:4], warm_tp.tools), warm_stock))
+    warm_kernels()  # numba: compile or load the kernels before any clock starts
     results = []
-    print(f"{'program':12s} {'engine':8s} {'start':>6s} {'CLs':>4s} {'cut':>4s} {'fail':>4s} {'mean ms':>9s} "
+    print(f"{'program':12s} {'engine':11s} {'start':>6s} {'CLs':>4s} {'cut':>4s} {'fail':>4s} {'mean ms':>9s} "
           f"{'median':>8s} {'p95':>8s} {'removed mm3':>12s}")
     for program in chosen:
         try:
-            res = run_program(program, options, args.cls, args.windows, not args.no_brep)
+            res = run_program(program, options, args.cls, args.windows, not args.no_brep, args.workers)
         except Exception as exc:  # a program this engine cannot take is reported, not fatal to the others
             print(f"{program.name:12s} not run: {type(exc).__name__}: {exc}")
             results.append({"program": program.name, "error": f"{type(exc).__name__}: {exc}"})
@@ -154,18 +175,25 @@ def main(argv: list[str] | None = None) -> int:
         for w in res["windows"]:
             if not w["cls"]:
                 continue
-            print(f"{program.name:12s} {w['engine']:8s} {w['start']:6d} {w['cls']:4d} {w['cut']:4d} {w['failed']:4d} "
+            print(f"{program.name:12s} {w['engine']:11s} {w['start']:6d} {w['cls']:4d} {w['cut']:4d} {w['failed']:4d} "
                   f"{w['mean_ms']:9.1f} {w['median_ms']:8.1f} {w['p95_ms']:8.1f} {w['removed_mm3']:12.4f}")
         ana = [w for w in res["windows"] if w["engine"] == "analytic" and w["cls"]]
         brep = [w for w in res["windows"] if w["engine"] == "brep" and w["cls"]]
         if len(ana) > 1:
             res["growth"] = ana[-1]["mean_ms"] / ana[0]["mean_ms"]
+        par = [w for w in res["windows"] if w["engine"].startswith("analytic x") and w["cls"]]
+        if par and ana and ana[0]["cls"] == par[0]["cls"]:
+            res["parallel_speedup"] = ana[0]["mean_ms"] / par[0]["mean_ms"]
+            res["parallel_serial_fraction"] = par[0]["serial_fraction"]
+            res["parallel_removed_equal"] = par[0]["removed_mm3"] == ana[0]["removed_mm3"]
         if brep and ana and ana[0]["cls"] == brep[0]["cls"]:
             res["mean_ratio_brep_over_analytic"] = brep[0]["mean_ms"] / ana[0]["mean_ms"]
             res["removed_relative_difference"] = ((ana[0]["removed_mm3"] - brep[0]["removed_mm3"])
                                                   / max(abs(brep[0]["removed_mm3"]), 1e-12))
-        facts = [f"{k} {res[k]:.3g}" for k in ("growth", "mean_ratio_brep_over_analytic", "removed_relative_difference")
-                 if k in res]
+        facts = [f"{k} {res[k]:.3g}" for k in ("growth", "mean_ratio_brep_over_analytic", "removed_relative_difference",
+                                               "parallel_speedup", "parallel_serial_fraction") if k in res]
+        if "parallel_removed_equal" in res:
+            facts.append(f"parallel removed equal: {res['parallel_removed_equal']}")
         if facts:
             print(f"{'':12s} {', '.join(facts)}")
         results.append(res)

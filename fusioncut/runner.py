@@ -25,9 +25,9 @@ CLs in batches, so there Ctrl-C stops once the batch in progress is done.
 
 The engine option ``engine="analytic"`` runs :class:`~fusioncut.engines.analytic.engine.AnalyticEngine`
 (exact sweeps, no Booleans) instead: box stocks and tools of revolution only, checked before anything
-is written; always in this process (``workers`` and ``scheduler`` are ignored with a warning, as
-they steer the run, not its results); it keeps no B-Rep workpiece, so the IPW export and snapshots
-are skipped with one warning.
+is written; with ``workers`` or ``scheduler`` its CLs are computed in chunks on Dask workers
+(:mod:`fusioncut.engines.analytic.parallel`, the same rows); it keeps no B-Rep workpiece, so the
+IPW export and snapshots are skipped with one warning.
 """
 from __future__ import annotations
 
@@ -285,21 +285,24 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
 
 
 def _engine(options: EngineOptions, workers: int, scheduler: str | None) -> Engine:
-    """The engine for these run options: :class:`AnalyticEngine` when the options ask for it (always
-    single-process), else :class:`BRepEngine`, or the parallel one with its Dask client open (an
-    unreachable scheduler fails here, before anything is written)."""
-    if options.engine == EngineKind.ANALYTIC:
-        if workers > 1 or scheduler:
-            log.warning("the analytic engine runs in this process: workers and scheduler are ignored")
-        return AnalyticEngine(options)
+    """The engine for these run options: :class:`AnalyticEngine` when the options ask for it, else
+    :class:`BRepEngine`; with ``workers`` > 1 or a ``scheduler``, their parallel kinds with the Dask
+    client open (an unreachable scheduler fails here, before anything is written)."""
+    analytic = options.engine == EngineKind.ANALYTIC
     if workers <= 1 and not scheduler:
-        return BRepEngine(options)
+        return AnalyticEngine(options) if analytic else BRepEngine(options)
     if _inside_dask_worker():
         # a LocalCluster's worker processes cannot be started from a (daemonic) Dask worker, and a
         # job the service runs already has its own worker: it stays single-process there
         log.warning("running inside a Dask worker: the job runs single-process here (workers and scheduler "
                     "ignored)")
-        return BRepEngine(options)
+        return AnalyticEngine(options) if analytic else BRepEngine(options)
+    if analytic:
+        from fusioncut.engines.analytic.parallel import ParallelAnalyticEngine
+
+        analytic_engine = ParallelAnalyticEngine(options, workers=workers, scheduler=scheduler)
+        analytic_engine.open()
+        return analytic_engine
     # imported here: distributed costs a second of start-up that a single-process run saves
     from fusioncut.engines.brep.parallel import ParallelBRepEngine
 
@@ -335,8 +338,8 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
     for s in segments:
         expected[s.operation] = expected.get(s.operation, 0) + 1
     ck_dir = out_dir / CHECKPOINT_DIR
-    if isinstance(engine, AnalyticEngine):
-        engine.check_tools(toolpath, default_tool)  # before anything is written
+    if engine.kind == EngineKind.ANALYTIC:
+        engine.check_tools(toolpath, default_tool)  # type: ignore[attr-defined]  # before anything is written
 
     start_at, kept_rows = (_resume_point(engine, out_dir, job_id, total) if resume else (0, []))
     if start_at == 0:
@@ -363,7 +366,7 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
     if default_tool is not None:
         tools.setdefault(default_tool.label, default_tool)
     snapshots = set(snapshot_cls)
-    if isinstance(engine, AnalyticEngine) and (export_ipw or snapshots):
+    if engine.kind == EngineKind.ANALYTIC and (export_ipw or snapshots):
         log.warning("the analytic engine keeps no B-Rep workpiece: no IPW export or snapshot is written")
         snapshots, export_ipw = set(), False
     exported: list[Path] = []

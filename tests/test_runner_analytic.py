@@ -13,10 +13,10 @@ from typer.testing import CliRunner
 
 from fusioncut.cli import app
 from fusioncut.engines.analytic.engine import AnalyticEngine, CheckpointMismatch, UnsupportedStock
-from fusioncut.engines.base import EngineKind, EngineOptions
+from fusioncut.engines.base import EngineOptions
 from fusioncut.io.job import Job, Options, StockSpec, ToolSpec, job_hash, load_job
 from fusioncut.io.results import load_results
-from fusioncut.runner import _engine, prepare_job, run_job
+from fusioncut.runner import prepare_job, run_job
 
 # A flat end mill slot 2 mm deep (entering from outside the stock) and a ball-end ramp (1:2, swept along its path).
 PROGRAM = """\
@@ -145,11 +145,34 @@ def test_a_cylinder_stock_is_refused_before_anything_is_written(tmp_path):
     assert res.exit_code != 0 and "box stock" in res.output and "Traceback" not in res.output
 
 
-def test_workers_are_ignored_with_a_warning(caplog):
-    with caplog.at_level(logging.WARNING, logger="fusioncut.run"):
-        engine = _engine(EngineOptions(engine="analytic"), 4, None)
-    assert engine.kind is EngineKind.ANALYTIC and not engine.shares_cells
-    assert "workers and scheduler are ignored" in caplog.text
+def test_a_parallel_analytic_run_equals_one_process_and_resumes_across_them(tmp_path, caplog):
+    """workers=2 (chunks of CLs on an embedded Dask cluster): the same tables, bit for bit, as one
+    process; stopped after 9 CLs, the parallel run's checkpoint resumes in one process to them too."""
+    job, base = load_job(job_file(tmp_path, checkpoint_every=4))
+    ref = run_job(job, base, tmp_path / "ref")
+    parallel_job = job.model_copy(update={"options": job.options.model_copy(update={"workers": 2})})
+    with caplog.at_level(logging.INFO, logger="fusioncut.parallel"):
+        par = run_job(parallel_job, base, tmp_path / "par")
+    assert not par.interrupted and par.removed_volume == ref.removed_volume
+    assert re.search(r"analytic engine on 2 workers: \d+ CLs .* serial fraction", caplog.text)
+    (cl_a, sl_a), (cl_b, sl_b) = tables(tmp_path / "ref"), tables(tmp_path / "par")
+    pd.testing.assert_frame_equal(cl_a, cl_b, check_exact=True)
+    pd.testing.assert_frame_equal(sl_a, sl_b, check_exact=True)
+
+    out = tmp_path / "out"
+    seen: list[int] = []
+
+    def stop_after_nine(m, total):
+        seen.append(m.cl_index)
+        if len(seen) == 9:
+            raise KeyboardInterrupt
+
+    assert run_job(parallel_job, base, out, on_cl=stop_after_nine).interrupted
+    again = run_job(job, base, out)
+    assert not again.interrupted and again.resumed_from == 9
+    cl_c, sl_c = tables(out)
+    pd.testing.assert_frame_equal(cl_a, cl_c, check_exact=True)
+    pd.testing.assert_frame_equal(sl_a, sl_c, check_exact=True)
 
 
 def test_an_unsupported_tool_is_refused_before_anything_is_written(tmp_path, monkeypatch):

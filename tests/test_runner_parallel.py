@@ -229,9 +229,9 @@ def test_run_options_stay_out_of_the_job_hash(tmp_path):
 
 
 def test_unreachable_scheduler_fails_before_writing(tmp_path, monkeypatch):
-    import fusioncut.engines.brep.parallel as parallel
+    import fusioncut.engines.dask_cluster as dask_cluster
 
-    monkeypatch.setattr(parallel, "CONNECT_TIMEOUT_S", 1)
+    monkeypatch.setattr(dask_cluster, "CONNECT_TIMEOUT_S", 1)
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]

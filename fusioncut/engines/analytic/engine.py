@@ -180,14 +180,26 @@ class AnalyticEngine:
         :meth:`load_checkpoint` they must be the checkpoint's sweeps (else :class:`CheckpointMismatch`)."""
         for cl in cl_sequence(toolpath, self.options, default_tool):
             if cl.index < start_at:
-                profile = lower_profile(cl.tool)
-                self._index_of(profile).add(*sweep_row(cl.move, profile, self._tools.index_of(profile)))
+                self.index_only(cl)
                 continue
             if cl.index == start_at:
-                self._check_saved_sweeps(toolpath)
+                self.check_saved_sweeps(toolpath)
             yield self.step(cl)
 
-    def _check_saved_sweeps(self, toolpath: Toolpath) -> None:
+    def index_only(self, cl: CL) -> None:
+        """Take CL ``cl`` as done without computing it: its sweep is indexed, nothing is counted."""
+        profile = lower_profile(cl.tool)
+        self._index_of(profile).add(*sweep_row(cl.move, profile, self._tools.index_of(profile)))
+
+    def record(self, cl: CL, m: EngagementMap) -> None:
+        """Take CL ``cl`` as done by another engine on the same path (a parallel worker): its sweep
+        is indexed and its removed volume (``m``, mm³) counted, as :meth:`step` would have."""
+        self.index_only(cl)
+        self.removed_total += m.removed_volume
+
+    def check_saved_sweeps(self, toolpath: Toolpath) -> None:
+        """After :meth:`load_checkpoint` and indexing the CLs before its next one: the sweeps must be
+        the checkpoint's (else :class:`CheckpointMismatch`)."""
         saved, self._saved_sweeps = self._saved_sweeps, None
         if saved is not None and not np.array_equal(saved.reshape(-1, NCOL), self._sweeps().reshape(-1, NCOL)):
             raise CheckpointMismatch("the checkpoint's sweeps are not this toolpath's; run it afresh",

@@ -37,12 +37,9 @@ import asyncio
 import io
 import logging
 import os
-import signal
-import threading
 import time
 from collections import Counter, deque
 from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -51,12 +48,13 @@ from OCP.BinTools import BinTools
 from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.engines.base import EngineKind, EngineOptions
+from fusioncut.engines.dask_cluster import close_quietly, open_client
 from fusioncut.engines.brep.cells import Cell, Square
 from fusioncut.engines.brep.contact import merge_arcs, slice_intervals
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.occ import children, compound, volume
 from fusioncut.engines.cl_maps import CL, CutOutcome, SliceHeight, cl_sequence, engagement_map, slice_heights
-from fusioncut.errors import EngineStateError, InputError
+from fusioncut.errors import EngineStateError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.moves import Toolpath
 from fusioncut.model.stock import Stock
@@ -64,8 +62,6 @@ from fusioncut.model.tools import MillingTool
 
 log = logging.getLogger("fusioncut.parallel")
 
-CONNECT_TIMEOUT_S = 10
-WORKERS_TIMEOUT_S = 60
 
 
 # -- cells as bytes ---------------------------------------------------------------------------------
@@ -196,27 +192,6 @@ def cell_partition(n_cells: int, parts: int) -> list[list[int]]:
     return [ids for ids in (list(range(k, n_cells, parts)) for k in range(parts)) if ids]
 
 
-@contextmanager
-def _children_ignore_ctrl_c() -> Iterator[None]:
-    """Worker processes started meanwhile ignore SIGINT (Python keeps an inherited SIG_IGN).
-
-    A terminal's Ctrl-C reaches the whole process group; the runner's first Ctrl-C asks for a clean
-    stop with a checkpoint, which needs the workers alive to hand over their cells.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is None:  # set outside Python: it could not be put back
-        yield
-        return
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 def peak_rss_mb() -> float:
     """The peak resident memory (MB) of this process so far."""
     import resource
@@ -259,43 +234,10 @@ class ParallelBRepEngine:
         self.close()
 
     def open(self) -> None:
-        """Start the embedded cluster, or connect to the scheduler; an unreachable scheduler or one
-        without workers is an :class:`InputError` (the address is the user's)."""
-        if self._client is not None:
-            return
-        from distributed import Client, LocalCluster
-
-        if self.scheduler:
-            try:
-                self._client = Client(self.scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
-            except (OSError, TimeoutError, ValueError, TypeError) as exc:
-                raise InputError(f"cannot reach the Dask scheduler at {self.scheduler}: {exc}") from None
-            try:
-                self._client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
-            except (OSError, TimeoutError) as exc:
-                self.close()
-                raise InputError(f"the Dask scheduler at {self.scheduler} has no workers "
-                                 f"(waited {WORKERS_TIMEOUT_S} s)") from exc
-            log.info("connected to the Dask scheduler at %s (%d workers)", self.scheduler,
-                     len(self._client.scheduler_info()["workers"]))
-            return
-        import dask
-
-        # Dask starts its worker processes with MALLOC_TRIM_THRESHOLD_=65536, so that glibc hands
-        # freed memory back to the system at once; the kernel allocates and frees many small blocks
-        # per Boolean, and trimming after each free slows it down; glibc's default is kept
-        keep_malloc = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
-        with _children_ignore_ctrl_c(), dask.config.set(keep_malloc):
-            self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                         dashboard_address=":0", silence_logs=logging.ERROR)
-        try:
-            self._client = Client(self._cluster)
-        except BaseException:
-            self._cluster.close()
-            self._cluster = None
-            raise
-        log.info("started a Dask cluster of %d worker processes (dashboard %s)", self.workers,
-                 self._client.dashboard_link)
+        """Start the embedded cluster, or connect to the scheduler
+        (:func:`fusioncut.engines.dask_cluster.open_client`)."""
+        if self._client is None:
+            self._client, self._cluster = open_client(self.workers, self.scheduler)
 
     def close(self) -> None:
         """Close the client (and the embedded cluster). The workers' cells go with them: ask for
@@ -303,14 +245,7 @@ class ParallelBRepEngine:
         self._drop_actors()
         client, cluster = self._client, self._cluster
         self._client = self._cluster = None
-        # a failure to close must not hide how the run ended (this runs on errors and Ctrl-C too)
-        for what in (client, cluster):
-            if what is None:
-                continue
-            try:
-                what.close()
-            except Exception:  # noqa: BLE001 - nothing is left to do with it
-                log.warning("closing the Dask %s failed", type(what).__name__, exc_info=True)
+        close_quietly(client, cluster)
 
     # -- the Engine protocol ------------------------------------------------------------------------------
     @property
