@@ -137,7 +137,8 @@ def run_program(program: Program, options: EngineOptions, cls: int, windows: int
 
         with ParallelAnalyticEngine(options, workers=workers) as engine:
             engine.run_on_workers(warm_kernels)
-            row = timed(engine.run(toolpath, stock, default), cls)
+            engine.start(stock)
+            row = timed(engine.process(toolpath, default, stop_at=cls), cls)
             out["windows"].append({"engine": f"analytic x{workers}", "start": 0, **row,
                                    "serial_fraction": engine.serial_fraction})
     if brep:

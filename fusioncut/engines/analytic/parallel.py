@@ -86,8 +86,8 @@ def _compute_chunk(run: str, toolpath: Toolpath, stock: Stock, options: EngineOp
 
 @dataclass
 class ParallelAnalyticEngine:
-    """:class:`~.engine.AnalyticEngine` with its CLs computed on Dask workers, in chunks of ``chunk``
-    CLs (see the module docstring). Use as a context manager, or call :meth:`open` and :meth:`close`."""
+    """:class:`~.engine.AnalyticEngine` with its CLs computed on Dask workers, in chunks of at most
+    ``chunk`` CLs and at least 16 chunks per worker (see the module docstring). Use as a context manager, or call :meth:`open` and :meth:`close`."""
 
     options: EngineOptions = field(default_factory=EngineOptions)
     workers: int = 2
@@ -170,8 +170,9 @@ class ParallelAnalyticEngine:
         yield from self.process(toolpath, default_tool)
 
     def process(self, toolpath: Toolpath, default_tool: MillingTool | None = None,
-                start_at: int = 0) -> Iterator[EngagementMap]:
-        """One map per CL segment from ``start_at`` on, in order, computed on the workers."""
+                start_at: int = 0, stop_at: int | None = None) -> Iterator[EngagementMap]:
+        """One map per CL segment from ``start_at`` on (up to ``stop_at``, excluded, when given), in
+        order, computed on the workers."""
         self.open()
         t_run = time.perf_counter()
         serial = 0.0
@@ -185,7 +186,11 @@ class ParallelAnalyticEngine:
         n_workers = max(1, len(client.scheduler_info()["workers"]))
         run = uuid.uuid4().hex
         shared = client.scatter(toolpath, broadcast=True)
-        bounds = iter((a, min(a + self.chunk, len(cls))) for a in range(start_at, len(cls), self.chunk))
+        # chunks of at most ``chunk`` CLs, and at least 16 per worker, so that the last ones to finish
+        # leave a worker idle only briefly
+        stop = len(cls) if stop_at is None else min(stop_at, len(cls))
+        size = max(1, min(self.chunk, (stop - start_at) // (16 * n_workers)))
+        bounds = iter((a, min(a + size, stop)) for a in range(start_at, stop, size))
         pending: deque = deque()
         done = 0
 

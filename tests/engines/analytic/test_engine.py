@@ -8,8 +8,8 @@ import pytest
 from fusioncut.engines.analytic.engine import AnalyticEngine, UnsupportedStock
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
-from fusioncut.model import (ArcMove, BallEndMill, BoxStock, CLStatus, CylinderStock, FlatEndMill, LinearMove,
-                             SpindleDirection, Toolpath)
+from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CLStatus, CylinderStock, FlatEndMill,
+                             LinearMove, SpindleDirection, Toolpath)
 
 ANGLE_TOL = 0.001  # degrees (issue 26: 0.001 against the B-Rep engine, 0.005 against closed forms)
 VOLUME_REL = 1e-7
@@ -236,3 +236,52 @@ def test_agrees_with_brep_on_a_ball_slot_and_a_deeper_pass_beside_it():
              LinearMove((0, 20, -2), (0, 20, 5), rapid=True, tool=1), LinearMove((0, 20, 5), (-40, 2, 5), rapid=True, tool=1),
              feed((-40, 2, 5), (-40, 2, -3)), feed((-40, 2, -3), (0, 2, -3))]
     assert_agree(moves, {1: BallEndMill(6, 20)}, BoxStock((-30, -30, -20), (30, 30, 0)), max_segment_length=10.0)
+
+
+@pytest.mark.parametrize("end_radius", ["exact", "3 decimals", "4 decimals", "+2 um", "-2 um"])
+def test_slot_along_an_arc_as_posts_round_it_is_the_front_half(end_radius):
+    """A 6 mm flat end mill slots 2 mm deep along a G2 arc of radius 20 in solid material. Posts round
+    the end point (3 or 4 decimals) or leave it microns off the circle: the arc is a spiral, and every
+    slice at its last CL is still one interval spanning 180 degrees within 0.05 (issue 23: a spiral
+    turns the feed direction a little against the circle's tangent)."""
+    tool = FlatEndMill(6, 15)
+    stock = BoxStock((-40, -40, -10), (40, 40, 0))
+    a = math.radians(-60.0)
+    end = {"exact": (20 * math.cos(a), 20 * math.sin(a)),
+           "3 decimals": (round(20 * math.cos(a), 3), round(20 * math.sin(a), 3)),
+           "4 decimals": (round(20 * math.cos(a), 4), round(20 * math.sin(a), 4)),
+           "+2 um": (20.002 * math.cos(a), 20.002 * math.sin(a)),
+           "-2 um": (19.998 * math.cos(a), 19.998 * math.sin(a))}[end_radius]
+    moves = [feed((20, 0, 5), (20, 0, -2)),
+             ArcMove((20, 0, -2), (*end, -2), center=(0, 0, -2), clockwise=True, feed=600.0, tool=1)]
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=5.0, slice_height=1.0)
+    arc_cls = [m for m in maps[1:] if m.status == CLStatus.ENGAGED]
+    assert len(arc_cls) >= 4
+    for m in arc_cls[1:]:  # the first arc CL still leaves the plunge's hole
+        assert len(m.engaged_slices) == 2
+        for s in m.engaged_slices:
+            (entry, exit_), = intervals(s)
+            assert abs((exit_ - entry) % 360 - 180.0) <= 0.05, (entry, exit_)
+            assert angle_gap(entry, 0.0) <= 0.05
+
+
+@pytest.mark.parametrize("stepover", [2.5, 4.0, 5.5])
+def test_bull_nose_stepping_over_a_level_floor_meets_its_own_cusp(stepover):
+    """A bull-nose end mill (R 5, corner 2) cuts a level pass along x at y = 0, then a second one at
+    y = s. The first leaves the floor z = -d + f(|y|), f the tool's own lower profile; so a point of
+    the second pass's slice at z above the tip (radius r(z)) holds material iff |s + r sin(phi)| > r(z):
+    with the spindle clockwise the slice is engaged over immersion (0, acos(1 - s / r(z))), on the
+    torus and on the cylinder above it alike."""
+    R, rc, d = 5.0, 2.0, 3.0
+    tool = BullNoseEndMill(2 * R, 20, corner_radius=rc)
+    stock = BoxStock((-50, -20, -20), (50, 20, 0))
+    moves = [feed((-60, 0, -d), (60, 0, -d)), feed((60, 0, -d), (60, 0, 5)), feed((60, 0, 5), (-60, stepover, 5)),
+             feed((-60, stepover, 5), (-60, stepover, -d)), feed((-60, stepover, -d), (0, stepover, -d))]
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=10.0, slice_height=0.25)
+    last = maps[-1]
+    assert last.status == CLStatus.ENGAGED
+    assert len(last.engaged_slices) == round(d / 0.25)
+    for s in last.engaged_slices:
+        r = R - rc + math.sqrt(rc * rc - (rc - s.z) ** 2) if s.z < rc else R
+        assert s.radius == pytest.approx(r, abs=1e-12)
+        assert_same_intervals(intervals(s), [(0.0, math.degrees(math.acos(1 - stepover / r)))], 0.005)
