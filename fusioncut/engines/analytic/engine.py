@@ -47,7 +47,7 @@ from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_touches
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
-from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
+from fusioncut.engines.analytic.volume import boundary_curves, bounding_sweeps, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
@@ -59,6 +59,7 @@ from fusioncut.model.tools import MillingTool
 WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts as cut (zero-thickness walls)
 VOLUME_EPS = 1e-12  # mm³: a CL removing less is idle (air, or a rapid through air)
 TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
+BREAK_GRID = 24  # points a side of the grid that picks a tile's break curves (volume.bounding_sweeps)
 N_TOUCH = 360  # angles per height scanned for the contact's height range
 Z_TOL = 1e-10  # mm: the contact's height range
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
@@ -274,7 +275,9 @@ class AnalyticEngine:
         for tx0, ty0, tx1, ty1 in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius):
             keep = (CB[:, 0] <= tx1) & (CB[:, 2] >= tx0) & (CB[:, 1] <= ty1) & (CB[:, 3] >= ty0)
             Ct, CBt = C[keep], CB[keep]
-            rows = np.vstack([row[None, :], Ct])
+            bounding = bounding_sweeps(tx0, ty0, tx1, ty1, BREAK_GRID, row, profile.pieces, profile.radius, Ct, CBt,
+                                       tables.profiles, tables.counts, tables.radii, s[2], s[5])
+            rows = np.vstack([row[None, :], Ct[bounding]])
             radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5]))
                      for r in rows]
             circles, segments = boundary_curves(rows, radii)

@@ -29,6 +29,9 @@ from numba import njit
 from fusioncut.engines.analytic.sweeps import sweep_floor, sweep_lower
 
 MIN_PART = 1e-9  # mm
+N_PROBE = 8  # samples a stretch between break points is probed at for kinks
+KINK_TOL = 1e-12  # mm: a kink's place along a line
+X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
 _PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
 
 # Gauss-Kronrod 15-point nodes (on [-1, 1]) and weights; the Gauss 7-point weights at the odd nodes
@@ -45,14 +48,17 @@ _WG = np.array([0.129484966168869693270611432679082, 0.2797053914892766679014677
 
 
 @njit(cache=True)
-def removed_height(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
-    """max(0, min(h, z_top) - max(L, z_bottom)) at (px, py), mm."""
+def height_and_cause(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
+    """(max(0, min(h, z_top) - max(L, z_bottom)) at (px, py) in mm, the index in ``C`` of the earlier
+    sweep that gave ``h`` there: the least lower surface met before the height was known to be 0, or
+    -1 where none is below ``z_top`` or the point is outside the CL's footprint)."""
     low = sweep_lower(S, P, R, px, py, 0.0)
     if low == math.inf:
-        return 0.0
+        return 0.0, -1
     if low < z_bottom:
         low = z_bottom
     high = z_top
+    cause = -1
     for j in range(C.shape[0]):
         if px < CB[j, 0] or px > CB[j, 2] or py < CB[j, 1] or py > CB[j, 3]:
             continue
@@ -64,9 +70,85 @@ def removed_height(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
         h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, 0.0)
         if h < high:
             high = h
+            cause = j
             if high <= low:
-                return 0.0
-    return high - low if high > low else 0.0
+                return 0.0, cause
+    return (high - low if high > low else 0.0), cause
+
+
+@njit(cache=True)
+def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """What shapes the removed height at (x, y): 0 where nothing is removed, else 1 + 2 * (the index
+    of the sweep giving ``h``, or -1 for the stock's top) + (1 where ``L`` is below the stock's
+    bottom). Within a stretch of one state the removed height is smooth."""
+    v, cause = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    if v <= 0.0:
+        return 0
+    return 3 + 2 * cause + (1 if sweep_lower(S, P, R, x, y, 0.0) < zb else 0)
+
+
+@njit(cache=True)
+def _with_kinks(x, pts, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """``pts`` with the kinks of the removed height along the line at ``x`` added: where its
+    :func:`_state` changes between :data:`N_PROBE` + 1 even samples of each stretch, bisected to
+    :data:`KINK_TOL` mm. A kink left inside a stretch costs the adaptive rule many halvings."""
+    out = [pts[0]]
+    for p in range(pts.shape[0] - 1):
+        a, b = pts[p], pts[p + 1]
+        if b - a > 4 * KINK_TOL:
+            prev_y = a + KINK_TOL
+            prev = _state(x, prev_y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            for i in range(1, N_PROBE + 1):
+                y = a + (b - a) * i / N_PROBE if i < N_PROBE else b - KINK_TOL
+                st = _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                if st != prev:
+                    lo, hi = prev_y, y
+                    while hi - lo > KINK_TOL:
+                        m = 0.5 * (lo + hi)
+                        if _state(x, m, S, P, R, C, CB, PP, NPC, RR, zb, zt) == prev:
+                            lo = m
+                        else:
+                            hi = m
+                    out.append(0.5 * (lo + hi))
+                prev, prev_y = st, y
+        out.append(b)
+    return np.array(out)
+
+
+@njit(cache=True)
+def removed_height(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
+    """max(0, min(h, z_top) - max(L, z_bottom)) at (px, py), mm."""
+    return height_and_cause(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top)[0]
+
+
+@njit(cache=True)
+def bounding_sweeps(x0, y0, x1, y1, n, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """Which of the earlier sweeps ``C`` bound the removed region over the rectangle, as seen on an
+    ``n`` x ``n`` grid of points: those giving ``h`` at a point where material is removed or at one
+    of its neighbours (where the region ends). Only their boundary curves are made break points:
+    the others' kinks lie where nothing is removed. Break points only speed the adaptive integral
+    up; a sweep the grid misses costs time, not accuracy."""
+    val = np.empty((n, n))
+    arg = np.empty((n, n), dtype=np.int64)
+    for i in range(n):
+        x = x0 + (x1 - x0) * (i + 0.5) / n
+        for j in range(n):
+            y = y0 + (y1 - y0) * (j + 0.5) / n
+            val[i, j], arg[i, j] = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    mask = np.zeros(C.shape[0], dtype=np.bool_)
+    for i in range(n):
+        for j in range(n):
+            if arg[i, j] < 0 or mask[arg[i, j]]:
+                continue
+            near = val[i, j] > 0.0
+            for di in range(-1, 2):
+                for dj in range(-1, 2):
+                    a, b = i + di, j + dj
+                    if 0 <= a < n and 0 <= b < n and val[a, b] > 0.0:
+                        near = True
+            if near:
+                mask[arg[i, j]] = True
+    return mask
 
 
 @njit(cache=True)
@@ -150,7 +232,7 @@ def _worst(err, n):
 @njit(cache=True)
 def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget):
     """Integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all."""
-    pts = _crossings_at_x(x, circles, segments, ylo, yhi)
+    pts = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
     lo = np.empty(_PANELS)
     hi = np.empty(_PANELS)
     val = np.empty(_PANELS)
@@ -194,11 +276,58 @@ def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt
 
 
 @njit(cache=True)
+def _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """A hash of the line at ``x``: the sequence of :func:`_state` along it (equal neighbours merged).
+    The inner integral is smooth in ``x`` while the sequence stays the same; where it changes (a
+    kink curve turns back, two cross, the removed region starts or ends) it is not."""
+    pts = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    h = np.int64(7)
+    last = np.int64(-2)
+    for p in range(pts.shape[0] - 1):
+        if pts[p + 1] - pts[p] <= 0.0:
+            continue
+        st = np.int64(_state(x, 0.5 * (pts[p] + pts[p + 1]), S, P, R, C, CB, PP, NPC, RR, zb, zt))
+        if st != last:
+            h = h * np.int64(1000003) + st + np.int64(11)
+            last = st
+    return h
+
+
+@njit(cache=True)
+def _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """``xs`` with the places added where the lines' :func:`_signature` changes: probed at
+    :data:`N_PROBE` + 1 even lines between break points, bisected to :data:`X_KINK_TOL` mm, so that
+    the outer integral's parts end where its integrand is not smooth."""
+    out = [xs[0]]
+    for p in range(xs.shape[0] - 1):
+        a, b = xs[p], xs[p + 1]
+        if b - a > 4 * X_KINK_TOL:
+            prev_x = a + X_KINK_TOL
+            prev = _signature(prev_x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            for i in range(1, N_PROBE + 1):
+                x = a + (b - a) * i / N_PROBE if i < N_PROBE else b - X_KINK_TOL
+                sig = _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                if sig != prev:
+                    lo, hi = prev_x, x
+                    while hi - lo > X_KINK_TOL:
+                        m = 0.5 * (lo + hi)
+                        if _signature(m, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt) == prev:
+                            lo = m
+                        else:
+                            hi = m
+                    out.append(0.5 * (lo + hi))
+                prev, prev_x = sig, x
+        out.append(b)
+    return np.array(out)
+
+
+@njit(cache=True)
 def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol):
     """The removed volume (mm³) over x between the sorted break points ``xs`` and y in [ylo, yhi],
     to ``tol`` mm per mm² of that rectangle: a tenth of the budget goes to the inner integrals
     (each line's error within a tenth of ``tol (yhi - ylo)``), the rest to the outer one."""
     area = (xs[-1] - xs[0]) * (yhi - ylo)
+    xs = _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     budget = 0.9 * tol * area
     inner = 0.1 * tol * (yhi - ylo)
     lo = np.empty(_PANELS)
