@@ -277,7 +277,11 @@ class AnalyticEngine:
             Ct, CBt = C[keep], CB[keep]
             bounding = bounding_sweeps(tx0, ty0, tx1, ty1, BREAK_GRID, row, profile.pieces, profile.radius, Ct, CBt,
                                        tables.profiles, tables.counts, tables.radii, s[2], s[5])
-            rows = np.vstack([row[None, :], Ct[bounding]])
+            # the bounding sweeps first: the least lower surface is then met early, and the others'
+            # closed-form floors skip them (volume.height_and_cause)
+            order = np.argsort(~bounding, kind="stable")
+            Ct, CBt = Ct[order], CBt[order]
+            rows = np.vstack([row[None, :], Ct[:int(bounding.sum())]])
             radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5]))
                      for r in rows]
             circles, segments = boundary_curves(rows, radii)
