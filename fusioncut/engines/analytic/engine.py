@@ -59,7 +59,7 @@ from fusioncut.model.tools import MillingTool
 WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts as cut (zero-thickness walls)
 VOLUME_EPS = 1e-12  # mm³: a CL removing less is idle (air, or a rapid through air)
 TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
-BREAK_GRID = 24  # points a side of the grid that picks a tile's break curves (volume.bounding_sweeps)
+ORDER_GRID = 24  # points a side of the grid that orders a tile's sweeps (volume.bounding_sweeps)
 N_TOUCH = 360  # angles per height scanned for the contact's height range
 Z_TOL = 1e-10  # mm: the contact's height range
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
@@ -275,13 +275,13 @@ class AnalyticEngine:
         for tx0, ty0, tx1, ty1 in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius):
             keep = (CB[:, 0] <= tx1) & (CB[:, 2] >= tx0) & (CB[:, 1] <= ty1) & (CB[:, 3] >= ty0)
             Ct, CBt = C[keep], CB[keep]
-            bounding = bounding_sweeps(tx0, ty0, tx1, ty1, BREAK_GRID, row, profile.pieces, profile.radius, Ct, CBt,
+            bounding = bounding_sweeps(tx0, ty0, tx1, ty1, ORDER_GRID, row, profile.pieces, profile.radius, Ct, CBt,
                                        tables.profiles, tables.counts, tables.radii, s[2], s[5])
             # the bounding sweeps first: the least lower surface is then met early, and the others'
             # closed-form floors skip them (volume.height_and_cause)
             order = np.argsort(~bounding, kind="stable")
             Ct, CBt = Ct[order], CBt[order]
-            rows = np.vstack([row[None, :], Ct[:int(bounding.sum())]])
+            rows = np.vstack([row[None, :], Ct])
             radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5]))
                      for r in rows]
             circles, segments = boundary_curves(rows, radii)

@@ -125,9 +125,10 @@ def removed_height(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
 def bounding_sweeps(x0, y0, x1, y1, n, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """Which of the earlier sweeps ``C`` bound the removed region over the rectangle, as seen on an
     ``n`` x ``n`` grid of points: those giving ``h`` at a point where material is removed or at one
-    of its neighbours (where the region ends). Only their boundary curves are made break points:
-    the others' kinks lie where nothing is removed. Break points only speed the adaptive integral
-    up; a sweep the grid misses costs time, not accuracy."""
+    of its neighbours (where the region ends). Searched first, they let the closed-form floors skip
+    the others (:func:`height_and_cause`). A grid misses a sweep that bounds the region only in a
+    sliver between its points, so this chooses an order, never which sweeps count (nor which give
+    break points: a footprint's edge left inside a part can fool the error estimate)."""
     val = np.empty((n, n))
     arg = np.empty((n, n), dtype=np.int64)
     for i in range(n):
