@@ -26,6 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
+from fusioncut.engines.analytic.profile import profile_height
 from fusioncut.engines.analytic.sweeps import sweep_floor, sweep_lower
 
 MIN_PART = 1e-9  # mm
@@ -89,12 +90,21 @@ def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 @njit(cache=True)
 def _with_kinks(x, pts, S, P, R, C, CB, PP, NPC, RR, zb, zt):
-    """``pts`` with the kinks of the removed height along the line at ``x`` added: where its
-    :func:`_state` changes between :data:`N_PROBE` + 1 even samples of each stretch, bisected to
-    :data:`KINK_TOL` mm. A kink left inside a stretch costs the adaptive rule many halvings."""
+    """(``pts`` with the kinks of the removed height along the line at ``x`` added, and per stretch
+    between them whether anything may be removed there). A stretch :func:`_nothing_removed` proves
+    empty is kept whole; in the others :func:`_state` is probed at :data:`N_PROBE` + 1 even samples
+    and each change bisected to :data:`KINK_TOL` mm. A kink left inside a stretch costs the adaptive
+    rule many halvings."""
     out = [pts[0]]
+    live = []
     for p in range(pts.shape[0] - 1):
         a, b = pts[p], pts[p + 1]
+        if b - a <= 0.0:
+            continue
+        if _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+            out.append(b)
+            live.append(False)
+            continue
         if b - a > 4 * KINK_TOL:
             prev_y = a + KINK_TOL
             prev = _state(x, prev_y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
@@ -110,9 +120,63 @@ def _with_kinks(x, pts, S, P, R, C, CB, PP, NPC, RR, zb, zt):
                         else:
                             hi = m
                     out.append(0.5 * (lo + hi))
+                    live.append(True)
                 prev, prev_y = st, y
         out.append(b)
-    return np.array(out)
+        live.append(True)
+    return np.array(out), np.array(live, dtype=np.bool_)
+
+
+@njit(cache=True)
+def _point_segment(px, py, ax, ay, bx, by):
+    """XY distance (mm) from a point to a segment."""
+    ux, uy = bx - ax, by - ay
+    uu = ux * ux + uy * uy
+    t = 0.0 if uu <= 0.0 else min(max(((px - ax) * ux + (py - ay) * uy) / uu, 0.0), 1.0)
+    return math.hypot(px - ax - t * ux, py - ay - t * uy)
+
+
+@njit(cache=True)
+def _line_floor(S, P, x, a, b):
+    """A lower bound (mm) of the line sweep ``S``'s lower surface over the segment x = ``x``,
+    y in [a, b]: the path's lowest tip plus ``f`` at the least XY distance between the two segments
+    (0 where they cross, else the least distance of an end of one to the other)."""
+    ax, ay, bx, by = S[1], S[2], S[4], S[5]
+    d = min(_point_segment(x, a, ax, ay, bx, by), _point_segment(x, b, ax, ay, bx, by),
+            _point_segment(ax, ay, x, a, x, b), _point_segment(bx, by, x, a, x, b))
+    if (ax - x) * (bx - x) <= 0.0 and ax != bx:
+        yc = ay + (by - ay) * (x - ax) / (bx - ax)
+        if a <= yc <= b:
+            d = 0.0
+    return min(S[3], S[6]) + profile_height(P, d)
+
+
+@njit(cache=True)
+def _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """True only where nothing is removed anywhere on the segment x = ``x``, y in [a, b] (a stretch
+    between break points, so that every sweep's footprint covers all of it or none of it).
+
+    Outside the CL's footprint at the point between, it is outside everywhere. Else the removed
+    height is max(0, min(h, top) - max(L, bottom)) with max(L, bottom) at least ``floor``, the
+    bottom or the CL's own floor (:func:`_line_floor`; an arc's lowest tip). It is 0 all along where
+    ``floor`` reaches the top, or where the sweep giving ``h`` at the point between is a line: its
+    lower surface is convex in (x, y) (the partial minimum over t of the jointly convex
+    z(t) + f(|p - c(t)|)), so at most the larger of its values at the ends, and that is below
+    ``floor``."""
+    y = 0.5 * (a + b)
+    v, j = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    if v > 0.0:
+        return False
+    if sweep_lower(S, P, R, x, y, 0.0) == math.inf:
+        return True
+    floor = max(zb, _line_floor(S, P, x, a, b) if S[0] == 0.0 else min(S[3], S[6]))
+    if floor >= zt:
+        return True
+    if j < 0 or C[j, 0] != 0.0:
+        return False
+    k = int(C[j, 12])
+    Pk, Rk = PP[k, :NPC[k]], RR[k]
+    return max(sweep_lower(C[j], Pk, Rk, x, a, 0.0), sweep_lower(C[j], Pk, Rk, x, b, 0.0)) <= floor
 
 
 @njit(cache=True)
@@ -233,14 +297,14 @@ def _worst(err, n):
 @njit(cache=True)
 def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget):
     """Integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all."""
-    pts = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    pts, live = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
     lo = np.empty(_PANELS)
     hi = np.empty(_PANELS)
     val = np.empty(_PANELS)
     err = np.empty(_PANELS)
     n = 0
     for p in range(pts.shape[0] - 1):
-        if pts[p + 1] - pts[p] > 0.0 and n < _PANELS:
+        if live[p] and n < _PANELS:
             lo[n], hi[n] = pts[p], pts[p + 1]
             val[n], err[n] = _gk_y(x, lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt)
             n += 1
@@ -281,13 +345,13 @@ def _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, 
     """A hash of the line at ``x``: the sequence of :func:`_state` along it (equal neighbours merged).
     The inner integral is smooth in ``x`` while the sequence stays the same; where it changes (a
     kink curve turns back, two cross, the removed region starts or ends) it is not."""
-    pts = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    pts, live = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
     h = np.int64(7)
     last = np.int64(-2)
     for p in range(pts.shape[0] - 1):
-        if pts[p + 1] - pts[p] <= 0.0:
-            continue
-        st = np.int64(_state(x, 0.5 * (pts[p] + pts[p + 1]), S, P, R, C, CB, PP, NPC, RR, zb, zt))
+        st = np.int64(0)
+        if live[p]:
+            st = np.int64(_state(x, 0.5 * (pts[p] + pts[p + 1]), S, P, R, C, CB, PP, NPC, RR, zb, zt))
         if st != last:
             h = h * np.int64(1000003) + st + np.int64(11)
             last = st
