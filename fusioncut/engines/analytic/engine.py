@@ -268,8 +268,8 @@ class AnalyticEngine:
         s = self.stock
         x0, x1 = max(box[0], s[0]), min(box[2], s[3])
         y0, y1 = max(box[1], s[1]), min(box[3], s[4])
-        if x0 >= x1 or y0 >= y1:
-            return 0.0
+        if x0 >= x1 or y0 >= y1 or min(row[3], row[6]) >= s[5]:
+            return 0.0  # beside the stock, or above it: the lower surface is nowhere below the lowest tip
         tables = self._tools
         total = 0.0
         for tx0, ty0, tx1, ty1 in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius):
