@@ -18,6 +18,14 @@ error estimate (QUADPACK's, from the two rules) is halved until the estimates ad
 the removed height starts from zero, down to :data:`MIN_PART`; a global one stops there once the
 tip's share of the error is small. The outer integral gets nine tenths of ``tol`` mm per mm² of
 the rectangle, each inner one a tenth (so that their errors do not look like a rough integrand).
+
+The integrand also bends where no footprint ends: where ``L`` meets ``h`` (the removed region's
+edge) and where the earlier sweep giving ``h`` changes. Along a line those **kinks** are found by
+probing the integrand's state between break points and bisecting each change (:func:`_with_kinks`);
+across lines, the places where the sequence of states changes (a kink curve turns back, two cross)
+become break points of the outer integral (:func:`_with_x_kinks`). A stretch where nothing can be
+removed is proven so from bounds and skipped (:func:`_nothing_removed`). Probes are samples: a
+kink between two of them is left to the adaptive rule, which then refines it as before.
 """
 from __future__ import annotations
 
