@@ -380,6 +380,12 @@ def contact_range(args: tuple, flute_length: float, dz: float, levels: list[floa
                 b = m
         return 0.5 * (a + b)
 
-    lo = 0.0 if first == 0 and grid[0] <= 1e-9 else edge(grid[first - 1] if first else 0.0, grid[first], False)
-    hi = flute_length if last == len(grid) - 1 and top >= flute_length else edge(grid[last], grid[last + 1] if last + 1 < len(grid) else top + 1e-7, True)
+    if first == 0 and grid[0] <= 1e-9:
+        lo = 0.0  # touching at the tip
+    else:
+        lo = edge(grid[first - 1] if first else 0.0, grid[first], False)
+    if last == len(grid) - 1 and top >= flute_length:
+        hi = flute_length  # touching up to the flutes' end
+    else:
+        hi = edge(grid[last], grid[last + 1] if last + 1 < len(grid) else top + 1e-7, True)
     return (lo, hi)
