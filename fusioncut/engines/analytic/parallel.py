@@ -87,7 +87,8 @@ def _compute_chunk(run: str, toolpath: Toolpath, stock: Stock, options: EngineOp
 @dataclass
 class ParallelAnalyticEngine:
     """:class:`~.engine.AnalyticEngine` with its CLs computed on Dask workers, in chunks of at most
-    ``chunk`` CLs and at least 16 chunks per worker (see the module docstring). Use as a context manager, or call :meth:`open` and :meth:`close`."""
+    ``chunk`` CLs and at least 16 chunks per worker (see the module docstring). Use as a context
+    manager, or call :meth:`open` and :meth:`close`."""
 
     options: EngineOptions = field(default_factory=EngineOptions)
     workers: int = 2

@@ -17,8 +17,8 @@ convex, ``f`` convex and non-decreasing), so its minimum is bracketed by the sig
 derivative ``g`` and the bracket ``[lo, hi]`` is shrunk (Illinois steps on ``g``, every third step a
 bisection) until convexity bounds the value's error, ``min(-g(lo), g(hi)) (hi - lo)``, by
 :data:`VALUE_TOL` (closed forms where the derivative keeps a sign, a flat end mill's ramps, and on
-level moves: there the lowest tool is the one nearest ``p``). On an arc the points within ``R`` form windows of angle around the
-direction of ``p``; each window is sampled at :data:`ARC_STEP` rad at most and every sampled local
+level moves: there the lowest tool is the one nearest ``p``). On an arc the points within ``R``
+form windows of angle around the direction of ``p``; each window is sampled at :data:`ARC_STEP` rad at most and every sampled local
 minimum is refined by golden section to ~1e-14 in ``t``: minima closer together than the step
 could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``.
 

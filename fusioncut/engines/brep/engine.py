@@ -52,7 +52,7 @@ from fusioncut.engines.brep.cells import (
 )
 from fusioncut.engines.brep.checkpoint import EngineState, load_checkpoint, save_checkpoint
 from fusioncut.engines.brep.contact import ContactFace, arc_contacts, find_contact_faces, slice_intervals
-from fusioncut.engines.brep.layers import CuttingRegion, StackCut, contact_patches, cut_stack
+from fusioncut.engines.brep.layers import CuttingRegion, StackCut, contact_patches, cut_stack, outline_faces
 from fusioncut.engines.brep.occ import (
     bounding_box, boxes_overlap, compound, count_faces, face_map, faces, on_old_boundary, pieces,
     unify, volume, write_brep,
@@ -284,9 +284,10 @@ class BRepEngine:
             layered = [LayeredCut(c, cut_stack(c.layers, region.outline, region.z_tip, region.z_top, fuzzies,
                                                c.swept.get(region.key))) for c in as_layers]
         except RegionCutFailure as exc:
-            log.error("CL %d (%s): layered Boolean failed: %s", index, move.source, exc)
+            saved = self._save_failure(index, region=outline_faces(region.outline))
+            log.error("CL %d (%s): layered Boolean failed: %s; shapes saved to %s", index, move.source, exc, saved)
             return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
-                              reason=f"Boolean of the layers failed after retries: {exc}"), []
+                              reason=f"Boolean of the layers failed after retries: {exc}; shapes saved to {saved}"), []
         t2 = time.perf_counter()
         timings["boolean"] = (t2 - t1) * 1e3
         if fp is not None and ceiling is not None:  # the cells are cut (below) or lose nothing: the sweep is gone
@@ -446,9 +447,14 @@ class BRepEngine:
         k = next(k for k, c in enumerate(self.cells) if c is cell)
         self.cells[k:k + 1] = quarters
 
-    def _save_failure(self, index: int, sweep: TopoDS_Shape) -> str:
+    def _save_failure(self, index: int, sweep: TopoDS_Shape | None = None, region: TopoDS_Shape | None = None) -> str:
+        """Write the workpiece before CL ``index`` and what failed to cut it (the sweep of a solid
+        Boolean, or the planar faces, z = 0, of the region a layered one cut) as BRep files into the
+        failure folder; their pattern."""
         folder = Path(self.options.failure_dir or "fusioncut-failures")
         folder.mkdir(parents=True, exist_ok=True)
         write_brep(self.ipw, str(folder / f"cl{index:06d}_ipw.brep"))
-        write_brep(sweep, str(folder / f"cl{index:06d}_sweep.brep"))
+        for name, shape in (("sweep", sweep), ("region", region)):
+            if shape is not None:
+                write_brep(shape, str(folder / f"cl{index:06d}_{name}.brep"))
         return str(folder / f"cl{index:06d}_*.brep")

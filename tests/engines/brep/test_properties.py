@@ -181,7 +181,7 @@ def test_the_end_probes_lie_inside_the_tool_at_the_end(tool, move):
         assert ahead == pytest.approx(0.9 * tool.profile().radius_at(probes[0][2] - move.end[2]))
 
 
-def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch):
+def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch, tmp_path):
     calls = {"n": 0}
     real = layers_mod._cut_region
 
@@ -194,11 +194,15 @@ def test_a_failed_boolean_of_the_layers_marks_the_cl_and_goes_on(monkeypatch):
     monkeypatch.setattr(layers_mod, "_cut_region", flaky)
     # the General Fuse is what cuts the layers the closed form cannot decide: here, all of them
     monkeypatch.setattr(layers_mod, "_closed_form_cut", lambda *args: None)
-    eng = BRepEngine(EngineOptions(max_segment_length=6.0))
+    eng = BRepEngine(EngineOptions(max_segment_length=6.0, failure_dir=str(tmp_path / "failures")))
     maps = list(eng.run(program(10, 2), STOCK))
     failed = [m for m in maps if m.status == CLStatus.FAILED]
     assert len(failed) == 1
     assert "simulated 2D kernel failure" in failed[0].reason
+    # the workpiece before the CL and the region it failed to cut are saved, and the reason says where
+    k = failed[0].cl_index
+    assert {p.name for p in (tmp_path / "failures").iterdir()} == {f"cl{k:06d}_ipw.brep", f"cl{k:06d}_region.brep"}
+    assert "shapes saved to" in failed[0].reason
     assert failed[0].cl_index < maps[-1].cl_index  # the run went on
     assert STOCK.volume - eng.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-6)
 
