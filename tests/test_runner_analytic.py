@@ -53,6 +53,18 @@ def job_file(tmp_path: Path, **options) -> Path:
     return path
 
 
+def stop_after(n: int):
+    """An ``on_cl`` that stops the run (as Ctrl-C does) once ``n`` CLs are done."""
+    seen: list[int] = []
+
+    def on_cl(m, total):
+        seen.append(m.cl_index)
+        if len(seen) == n:
+            raise KeyboardInterrupt
+
+    return on_cl
+
+
 def tables(out: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     r = load_results(out)
     return r.cl.drop(columns=["time_ms"]), r.slices
@@ -93,14 +105,7 @@ def test_an_interrupted_analytic_run_resumes_to_identical_results(tmp_path):
     assert not ref.interrupted and ref.conservation_error < 1e-9
 
     out = tmp_path / "out"
-    seen: list[int] = []
-
-    def stop_after_nine(m, total):
-        seen.append(m.cl_index)
-        if len(seen) == 9:
-            raise KeyboardInterrupt
-
-    assert run_job(job, base, out, on_cl=stop_after_nine).interrupted
+    assert run_job(job, base, out, on_cl=stop_after(9)).interrupted
     assert json.loads((out / "checkpoint" / "state.json").read_text())["next_cl"] == 9
     again = run_job(job, base, out)
     assert not again.interrupted and again.resumed_from == 9
@@ -160,14 +165,7 @@ def test_a_parallel_analytic_run_equals_one_process_and_resumes_across_them(tmp_
     pd.testing.assert_frame_equal(sl_a, sl_b, check_exact=True)
 
     out = tmp_path / "out"
-    seen: list[int] = []
-
-    def stop_after_nine(m, total):
-        seen.append(m.cl_index)
-        if len(seen) == 9:
-            raise KeyboardInterrupt
-
-    assert run_job(parallel_job, base, out, on_cl=stop_after_nine).interrupted
+    assert run_job(parallel_job, base, out, on_cl=stop_after(9)).interrupted
     again = run_job(job, base, out)
     assert not again.interrupted and again.resumed_from == 9
     cl_c, sl_c = tables(out)

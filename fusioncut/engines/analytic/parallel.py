@@ -97,7 +97,6 @@ class ParallelAnalyticEngine:
     ahead: int = 3  # chunks in flight per worker
     serial_fraction: float | None = None
     _local: AnalyticEngine = field(init=False, repr=False)
-    _stock: Stock | None = field(default=None, init=False, repr=False)
     _client: Any = field(default=None, init=False, repr=False)
     _cluster: Any = field(default=None, init=False, repr=False)
 
@@ -150,18 +149,13 @@ class ParallelAnalyticEngine:
     def start(self, stock: Stock) -> None:
         self._local.options = self.options
         self._local.start(stock)
-        self._stock = stock
 
     def save_checkpoint(self, folder: Path, next_cl: int) -> None:
         self._local.save_checkpoint(folder, next_cl)
 
     def load_checkpoint(self, folder: Path) -> int | None:
         self._local.options = self.options
-        next_cl = self._local.load_checkpoint(folder)
-        if next_cl is not None:
-            s = self._local.stock
-            self._stock = BoxStock(s[:3], s[3:])
-        return next_cl
+        return self._local.load_checkpoint(folder)
 
     def check_tools(self, toolpath: Toolpath, default_tool: MillingTool | None = None) -> None:
         self._local.check_tools(toolpath, default_tool)
@@ -187,6 +181,8 @@ class ParallelAnalyticEngine:
         n_workers = max(1, len(client.scheduler_info()["workers"]))
         run = uuid.uuid4().hex
         shared = client.scatter(toolpath, broadcast=True)
+        s = self._local.stock  # the workers start from the run's stock, as the local engine did
+        stock = BoxStock(s[:3], s[3:])
         # chunks of at most ``chunk`` CLs, and at least 16 per worker, so that the last ones to finish
         # leave a worker idle only briefly
         stop = len(cls) if stop_at is None else min(stop_at, len(cls))
@@ -197,7 +193,7 @@ class ParallelAnalyticEngine:
 
         def submit() -> None:
             for a, b in itertools.islice(bounds, n_workers * self.ahead - len(pending)):
-                pending.append(client.submit(_compute_chunk, run, shared, self._stock, self.options, default_tool,
+                pending.append(client.submit(_compute_chunk, run, shared, stock, self.options, default_tool,
                                              a, b, pure=False))
 
         serial += time.perf_counter() - t

@@ -259,18 +259,22 @@ def sweep_lower(S, P, R, px, py, eps):
 
 
 @njit(cache=True)
+def point_segment_distance(px, py, ax, ay, bx, by):
+    """XY distance (mm) from the point (px, py) to the segment from (ax, ay) to (bx, by)."""
+    ux, uy = bx - ax, by - ay
+    uu = ux * ux + uy * uy
+    t = 0.0 if uu <= 0.0 else min(max(((px - ax) * ux + (py - ay) * uy) / uu, 0.0), 1.0)
+    return math.hypot(px - ax - t * ux, py - ay - t * uy)
+
+
+@njit(cache=True)
 def sweep_floor(S, P, R, px, py, eps):
     """A lower bound (mm) of :func:`sweep_lower` at ``p``, in closed form: the path's lowest tip
     height plus ``f`` at the least XY distance from ``p`` to the path (``z(t) >= min z`` and ``f``
     grows outward); inf outside the footprint widened by ``eps``. It lets a caller skip a sweep
     whose lower surface cannot be below a height it already has."""
     if S[0] == 0.0:
-        ux, uy = S[4] - S[1], S[5] - S[2]
-        qx, qy = px - S[1], py - S[2]
-        uu = ux * ux + uy * uy
-        t = 0.0 if uu <= 0.0 else min(max((qx * ux + qy * uy) / uu, 0.0), 1.0)
-        dx, dy = qx - t * ux, qy - t * uy
-        d = math.sqrt(dx * dx + dy * dy)
+        d = point_segment_distance(px, py, S[1], S[2], S[4], S[5])
     else:
         qx, qy = px - S[7], py - S[8]
         Q = math.sqrt(qx * qx + qy * qy)

@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import sweep_floor, sweep_lower
+from fusioncut.engines.analytic.sweeps import point_segment_distance, sweep_floor, sweep_lower
 
 MIN_PART = 1e-9  # mm
 N_PROBE = 8  # samples a stretch between break points is probed at for kinks
@@ -58,14 +58,14 @@ _WG = np.array([0.129484966168869693270611432679082, 0.2797053914892766679014677
 
 @njit(cache=True)
 def height_and_cause(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
-    """(max(0, min(h, z_top) - max(L, z_bottom)) at (px, py) in mm, the index in ``C`` of the earlier
+    """(max(0, min(h, z_top) - max(L, z_bottom)) at (px, py) in mm; the index in ``C`` of the earlier
     sweep that gave ``h`` there: the least lower surface met before the height was known to be 0, or
-    -1 where none is below ``z_top`` or the point is outside the CL's footprint)."""
-    low = sweep_lower(S, P, R, px, py, 0.0)
-    if low == math.inf:
-        return 0.0, -1
-    if low < z_bottom:
-        low = z_bottom
+    -1 where none is below ``z_top`` or the point is outside the CL's footprint; ``L`` itself, mm,
+    inf outside the footprint)."""
+    own = sweep_lower(S, P, R, px, py, 0.0)
+    if own == math.inf:
+        return 0.0, -1, own
+    low = max(own, z_bottom)
     high = z_top
     cause = -1
     for j in range(C.shape[0]):
@@ -81,8 +81,8 @@ def height_and_cause(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
             high = h
             cause = j
             if high <= low:
-                return 0.0, cause
-    return (high - low if high > low else 0.0), cause
+                return 0.0, cause, own
+    return (high - low if high > low else 0.0), cause, own
 
 
 @njit(cache=True)
@@ -90,10 +90,10 @@ def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """What shapes the removed height at (x, y): 0 where nothing is removed, else 1 + 2 * (the index
     of the sweep giving ``h``, or -1 for the stock's top) + (1 where ``L`` is below the stock's
     bottom). Within a stretch of one state the removed height is smooth."""
-    v, cause = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    v, cause, own = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     if v <= 0.0:
         return 0
-    return 3 + 2 * cause + (1 if sweep_lower(S, P, R, x, y, 0.0) < zb else 0)
+    return 3 + 2 * cause + (1 if own < zb else 0)
 
 
 @njit(cache=True)
@@ -136,22 +136,13 @@ def _with_kinks(x, pts, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 
 @njit(cache=True)
-def _point_segment(px, py, ax, ay, bx, by):
-    """XY distance (mm) from a point to a segment."""
-    ux, uy = bx - ax, by - ay
-    uu = ux * ux + uy * uy
-    t = 0.0 if uu <= 0.0 else min(max(((px - ax) * ux + (py - ay) * uy) / uu, 0.0), 1.0)
-    return math.hypot(px - ax - t * ux, py - ay - t * uy)
-
-
-@njit(cache=True)
 def _line_floor(S, P, x, a, b):
     """A lower bound (mm) of the line sweep ``S``'s lower surface over the segment x = ``x``,
     y in [a, b]: the path's lowest tip plus ``f`` at the least XY distance between the two segments
     (0 where they cross, else the least distance of an end of one to the other)."""
     ax, ay, bx, by = S[1], S[2], S[4], S[5]
-    d = min(_point_segment(x, a, ax, ay, bx, by), _point_segment(x, b, ax, ay, bx, by),
-            _point_segment(ax, ay, x, a, x, b), _point_segment(bx, by, x, a, x, b))
+    d = min(point_segment_distance(x, a, ax, ay, bx, by), point_segment_distance(x, b, ax, ay, bx, by),
+            point_segment_distance(ax, ay, x, a, x, b), point_segment_distance(bx, by, x, a, x, b))
     if (ax - x) * (bx - x) <= 0.0 and ax != bx:
         yc = ay + (by - ay) * (x - ax) / (bx - ax)
         if a <= yc <= b:
@@ -172,10 +163,10 @@ def _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     z(t) + f(|p - c(t)|)), so at most the larger of its values at the ends, and that is below
     ``floor``."""
     y = 0.5 * (a + b)
-    v, j = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    v, j, own = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     if v > 0.0:
         return False
-    if sweep_lower(S, P, R, x, y, 0.0) == math.inf:
+    if own == math.inf:
         return True
     floor = max(zb, _line_floor(S, P, x, a, b) if S[0] == 0.0 else min(S[3], S[6]))
     if floor >= zt:
@@ -207,7 +198,7 @@ def bounding_sweeps(x0, y0, x1, y1, n, S, P, R, C, CB, PP, NPC, RR, zb, zt):
         x = x0 + (x1 - x0) * (i + 0.5) / n
         for j in range(n):
             y = y0 + (y1 - y0) * (j + 0.5) / n
-            val[i, j], arg[i, j] = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            val[i, j], arg[i, j], _ = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     mask = np.zeros(C.shape[0], dtype=np.bool_)
     for i in range(n):
         for j in range(n):
