@@ -16,6 +16,10 @@ and holder do). Nothing is built or kept but the sweeps themselves (one row each
 * the flute contact's height range (``ap``): the lowest and highest touching heights among the
   quarter slices and the heights of the stock's top and the earlier sweeps' ends (walking up from
   the bottom and down from the stock's top), each bisected against its neighbour to 1e-10 mm;
+* the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`):
+  the flutes' over the flute contact's height range, the shank's (the tool taken straight up at
+  ``R`` above the flutes, as it is swept) over its own range above the flutes, found as the
+  flutes' is;
 * the earlier sweeps near the CL come from a grid index of their footprints, where the CLs of one
   move are one sweep (:class:`.index.SweepIndex`).
 
@@ -28,8 +32,9 @@ ones (a checkpoint of another toolpath is refused). There is no B-Rep in-process
 
 The CL segments are the B-Rep engine's (:func:`fusioncut.engines.segments.segments_for`), so CL
 indices match; a piece of a ramp or helix is swept along the programmed path itself, not as the
-B-Rep engine's level step. Not yet here: contact areas (reported 0), the shank's contact, per-band
-volumes for the minimum chip thickness (no band is called rubbing), stocks other than a box.
+B-Rep engine's level step. Not yet here: per-band volumes for the minimum chip thickness (no band
+is called rubbing), a shank or neck of another radius than the flutes' top (see :mod:`.profile`),
+stocks other than a box.
 """
 from __future__ import annotations
 
@@ -43,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fusioncut.engines.analytic.area import contact_area
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_touches
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
@@ -239,21 +245,27 @@ class AnalyticEngine:
                       & (CB[:, 3] >= ey - reach))
             Ce, CBe = C[at_end], CB[at_end]
             args = (row, profile.pieces, profile.radius, Ce, CBe, PP, NPC, RR, stock, WALL_EPS)
-            z_range = contact_range(args, tool.flute_length, self.options.slice_height,
-                                    [self.stock[5]] + list(Ce[:, 3]) + list(Ce[:, 6]))
-            heights = slice_heights(z_range, tool, self.options.slice_height)
+            levels = [self.stock[5]] + list(Ce[:, 3]) + list(Ce[:, 6])
+            dz = self.options.slice_height
+            z_range = contact_range(args, 0.0, tool.flute_length, dz, levels)
+            heights = slice_heights(z_range, tool, dz)
             for z, active in heights:
-                if not active:
-                    arcs.append([])
-                    continue
-                r = profile_radius(profile.pieces, z)
-                found = slice_arcs(row, profile.pieces, profile.radius, z, r,
-                                   profile_radius_slope(profile.pieces, z), Ce, CBe, PP, NPC, RR, stock, WALL_EPS,
-                                   N_SCAN)
-                arcs.append([(float(a), float(w)) for a, w in found])
-            timings["contact"] = (time.perf_counter() - t2) * 1e3
+                arcs.append(_arcs_at(args, z) if active else [])
+            t3 = time.perf_counter()
+            timings["contact"] = (t3 - t2) * 1e3
+            flute_area = shank_area = 0.0
+            if z_range is not None:
+                ez = row[6]
+                breaks = [v - ez for v in levels]
+                flute_area = contact_area(lambda z: _width(args, z), profile.pieces, *z_range, breaks)[0]
+                shank = contact_range(args, tool.flute_length, math.inf, dz, levels) \
+                    if z_range[1] >= tool.flute_length else None
+                if shank is not None:
+                    shank_area = contact_area(lambda z: _width(args, z), profile.pieces, *shank, breaks)[0]
+            timings["area"] = (time.perf_counter() - t3) * 1e3
             outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
-                                 method=SweepMethod.EXACT, timings=timings, z_range=z_range, band_volumes=None)
+                                 method=SweepMethod.EXACT, timings=timings, z_range=z_range, band_volumes=None,
+                                 flute_area=flute_area, shank_area=shank_area)
         index.add(row, box, z_low)
         self.removed_total += removed
         m = engagement_map(cl, outcome, heights, arcs, self.options.slice_height,
@@ -289,6 +301,22 @@ class AnalyticEngine:
             total += removed_volume(xs, ty0, ty1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
                                     tables.profiles, tables.counts, tables.radii, s[2], s[5], self.volume_tol)
         return float(total)
+
+
+def _arcs_at(args: tuple, z: float) -> list[tuple[float, float]]:
+    """The engaged machine arcs (start, span), rad, of the slice ``z`` mm above the tip
+    (:func:`.contact.slice_arcs`; ``args`` as :func:`contact_range` takes them)."""
+    pieces = args[1]
+    found = slice_arcs(args[0], pieces, args[2], z, profile_radius(pieces, z), profile_radius_slope(pieces, z),
+                       *args[3:], N_SCAN)
+    return [(float(a), float(w)) for a, w in found]
+
+
+def _width(args: tuple, z: float) -> tuple[float, int]:
+    """The engaged arcs' total span (rad) at ``z`` mm above the tip and their number: the contact
+    area's integrand (:func:`.area.contact_area`)."""
+    arcs = _arcs_at(args, z)
+    return sum(w for _, w in arcs), len(arcs)
 
 
 def tiles(x0: float, y0: float, x1: float, y1: float, size: float) -> list[tuple[float, float, float, float]]:
@@ -337,12 +365,15 @@ def sweep_row(move: Move, profile: LowerProfile, tool_index: int
     return row, (min(x0, x1) - R, min(y0, y1) - R, max(x0, x1) + R, max(y0, y1) + R), z_low
 
 
-def contact_range(args: tuple, flute_length: float, dz: float, levels: list[float]) -> tuple[float, float] | None:
-    """The flute contact's height range (mm above the tip) of the tool at the end of ``args``' sweep
-    (``args`` as :func:`.contact.slice_arcs` takes them, less the height, radius and slope), or None.
+def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: list[float]
+                  ) -> tuple[float, float] | None:
+    """The height range (mm above the tip) between ``bottom`` and ``top`` where the tool at the end
+    of ``args``' sweep touches material (``args`` as :func:`.contact.slice_arcs` takes them, less the
+    height, radius and slope), or None: the flutes' contact with ``(0, flute length)``, the shank's
+    with ``(flute length, inf)``.
 
     The candidate heights are every quarter of ``dz`` and just above and below each machine height
-    of ``levels`` (the stock's top, the earlier sweeps' ends), within the flutes and the stock's
+    of ``levels`` (the stock's top, the earlier sweeps' ends), within the range and the stock's
     height. The lowest touching candidate is found walking up from the bottom, the highest walking
     down from the top (the heights between them are not tested); the change from its untouched
     neighbour is bisected to :data:`Z_TOL`."""
@@ -355,15 +386,15 @@ def contact_range(args: tuple, flute_length: float, dz: float, levels: list[floa
             return False
         return bool(slice_touches(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:], N_TOUCH))
 
-    top = min(flute_length, stock[5] - ez + 1e-7)  # no material above the stock's top
-    if top <= 0:
+    end = min(top, stock[5] - ez + 1e-7)  # no material above the stock's top
+    if end <= bottom:
         return None
-    zs = {min(1e-9, top), top}
+    zs = {min(bottom + 1e-9, end), end}
     step = dz / 4
-    zs.update(step * k for k in range(1, math.ceil(top / step)))
+    zs.update(bottom + step * k for k in range(1, math.ceil((end - bottom) / step)))
     for level in levels:
         for z in (level - ez - 1e-7, level - ez + 1e-7):
-            if 0 < z < top:
+            if bottom < z < end:
                 zs.add(z)
     grid = sorted(z for z in zs if z > stock[2] - ez - 1e-7)  # nor below its bottom
     first = next((i for i, z in enumerate(grid) if touches(z)), None)
@@ -380,12 +411,12 @@ def contact_range(args: tuple, flute_length: float, dz: float, levels: list[floa
                 b = m
         return 0.5 * (a + b)
 
-    if first == 0 and grid[0] <= 1e-9:
-        lo = 0.0  # touching at the tip
+    if first == 0 and grid[0] <= bottom + 1e-9:
+        lo = bottom  # touching from the range's bottom
     else:
-        lo = edge(grid[first - 1] if first else 0.0, grid[first], False)
-    if last == len(grid) - 1 and top >= flute_length:
-        hi = flute_length  # touching up to the flutes' end
+        lo = edge(grid[first - 1] if first else bottom, grid[first], False)
+    if last == len(grid) - 1 and end >= top:
+        hi = top  # touching up to the range's top
     else:
-        hi = edge(grid[last], grid[last + 1] if last + 1 < len(grid) else top + 1e-7, True)
+        hi = edge(grid[last], grid[last + 1] if last + 1 < len(grid) else end + 1e-7, True)
     return (lo, hi)

@@ -13,6 +13,11 @@ from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CL
 
 ANGLE_TOL = 0.001  # degrees (issue 26: 0.001 against the B-Rep engine, 0.005 against closed forms)
 VOLUME_REL = 1e-7
+AREA_REL = 1e-7  # the contact area's integration tolerance (issue 26), against closed forms
+# against the B-Rep engine: its contact faces are bounded by intersection curves the kernel approximates
+# (to ~1e-7 mm), and their areas carry that: on the ball slot beside a deeper pass below, 1.06e-7
+# relative off the analytic area, which stays put to 1e-12 as its own tolerance goes to 1e-11
+BREP_AREA_REL = 1e-6
 
 
 def run(moves, tools, stock, engine=AnalyticEngine, **opts):
@@ -81,6 +86,43 @@ def test_up_and_down_milling_closed_form(ae, side, spindle):
     assert last.ae == pytest.approx(ae, abs=1e-6)
     # a level cut of width ae and depth 4 along the 10 mm segment
     assert last.removed_volume == pytest.approx(ae * 10 * 4, rel=VOLUME_REL)
+
+
+@pytest.mark.parametrize("tool", [FlatEndMill(10, 20), BallEndMill(10, 20), BullNoseEndMill(10, 20, corner_radius=2.0)],
+                         ids=["flat", "ball", "bull-nose"])
+@pytest.mark.parametrize("decimals", [None, 3])
+def test_slot_contact_area_closed_form(tool, decimals):
+    """A slot 3 mm deep: the contact is the front half of the tool's surface below 3 mm (its end
+    face left out). Cylinder: pi R ap; sphere zone (Archimedes): pi R ap; bull-nose: the corner's
+    half torus, pi (pi/2 (R - rc) rc + rc²), and the cylinder above it, pi R (ap - rc). Also along a
+    path written with 3 decimals, as a post writes an oblique line."""
+    R, ap = 5.0, 3.0
+    end = rot((0, 0, -ap), 37.0)
+    if decimals is not None:
+        end = tuple(round(v, decimals) for v in end)
+    start = rot((-80, 0, -ap), 37.0)
+    _, maps = run([feed(start, end)], {1: tool}, BoxStock((-60, -60, -20), (60, 60, 0)), max_segment_length=20.0)
+    rc = getattr(tool, "corner_radius", 0.0) if not isinstance(tool, BallEndMill) else None
+    if rc is None or rc == 0.0:
+        expected = math.pi * R * ap
+    else:
+        expected = math.pi * (0.5 * math.pi * (R - rc) * rc + rc * rc) + math.pi * R * (ap - rc)
+    assert maps[-1].contact_area == pytest.approx(expected, rel=AREA_REL)
+    assert maps[-1].shank_contact_area == 0.0
+
+
+def test_shank_contact_closed_form_and_as_brep():
+    """A flat end mill with 2 mm of flutes slotting 3 mm deep: the flutes' half cylinder below 2 mm,
+    the shank's above it, each pi R times its height; the B-Rep engine says the same CL by CL."""
+    R = 5.0
+    tool = FlatEndMill(2 * R, 2.0)
+    moves = [feed((-80, 0, -3.0), (-40, 0, -3.0)), feed((-40, 0, -3.0), (0, 0, -3.0))]
+    stock = BoxStock((-60, -60, -20), (60, 60, 0))
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0)
+    assert maps[-1].contact_area == pytest.approx(math.pi * R * 2.0, rel=AREA_REL)
+    assert maps[-1].shank_contact_area == pytest.approx(math.pi * R * 1.0, rel=AREA_REL)
+    assert any("shank" in w for w in maps[-1].warnings)
+    assert_agree(moves, {1: tool}, stock, max_segment_length=20.0)
 
 
 def test_ball_slot_closed_form():
@@ -218,6 +260,8 @@ def assert_agree(moves, tools, stock, **opts):
         assert a.status == b.status, a.cl_index
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=1e-6, abs=1e-9), a.cl_index
         assert a.ap == pytest.approx(b.ap, abs=1e-9), a.cl_index
+        assert a.contact_area == pytest.approx(b.contact_area, rel=BREP_AREA_REL, abs=1e-9), a.cl_index
+        assert a.shank_contact_area == pytest.approx(b.shank_contact_area, rel=BREP_AREA_REL, abs=1e-9), a.cl_index
         assert len(a.slices) == len(b.slices), a.cl_index
         for s, t in zip(a.slices, b.slices):
             assert s.z == pytest.approx(t.z, abs=1e-9)
@@ -311,6 +355,7 @@ def test_agrees_with_brep_cl_by_cl_on_a_real_program():
         assert a.status == b.status, a.cl_index
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
         assert a.ap == pytest.approx(b.ap, abs=1e-9), a.cl_index
+        assert a.contact_area == pytest.approx(b.contact_area, rel=BREP_AREA_REL, abs=1e-9), a.cl_index
         assert len(a.slices) == len(b.slices), a.cl_index
         for s, t in zip(a.slices, b.slices):
             assert_same_intervals(intervals(s), intervals(t), ANGLE_TOL)

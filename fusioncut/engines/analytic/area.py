@@ -1,0 +1,168 @@
+"""Contact area of the tool at a CL's end: the engaged part of its surface of revolution.
+
+Tool frame as in :mod:`.profile` (z above the tip, mm); angles in rad. The contact is the set of
+points of the tool's surface (at the CL's end) that are engaged in the sense of
+:mod:`.contact`: in the material before the CL and on the sweep's front. Its slice at height
+``z`` is a set of arcs of total span ``W(z)`` on the circle of radius ``rho(z)``, so
+
+    area = integral over the profile's arc length s of  d(s) * W(z(s))  ds          (mm²)
+
+with ``(d(s), z(s))`` the generating curve: the lower profile's pieces (a line ``z = a + b (d -
+d0)``, ``ds = sqrt(1 + b²) dd``; an arc of radius ``c`` about ``(a, b)``, parametrised by its angle
+``phi`` with ``d = a + c sin phi``, ``z = b - c cos phi``, ``ds = c dphi``, so that a corner's
+vertical tangent is not a singularity) and, above them, the cylinder ``d = R`` (``ds = dz``). A
+horizontal piece (a flat end mill's end face) has no angular extent and is not counted, as the
+B-Rep engine's contact faces leave it out.
+
+``W`` jumps where an arc appears or vanishes (at the stock's top, at an earlier level pass's
+floor) and bends where an arc's end passes an earlier sweep's edge. The jumps at known heights
+(the slice bands' edges, the stock's top and the earlier sweeps' tip heights) start the
+integral's parts; within them it is adaptive Gauss-Kronrod (7, 15) with a global error budget
+(QUADPACK's QAG and its error estimate from the two rules and the integrand's spread about its
+mean, as :mod:`.volume`): the part with the largest estimate is halved until the
+estimates add up to ``rel_tol`` of the area, parts reach :data:`MIN_PART`, or :data:`MAX_EVALS`
+evaluations of ``W`` are spent; the estimate left is returned with the area.
+"""
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from fusioncut.engines.analytic.volume import _WG, _WK, _XK, _error
+
+MIN_PART = 1e-9  # along the generating curve (mm, or rad of a corner's angle)
+MAX_EVALS = 600  # evaluations of W(z) one CL's area may take
+_LINE = 0.0
+# Gauss-Kronrod (7, 15) on [-1, 1] (:mod:`.volume`'s nodes): the Kronrod nodes, 0 among them, and
+# the Kronrod and Gauss weights (0 at the Kronrod-only nodes)
+_NODES = np.concatenate([_XK, -_XK[:7]])
+_KRONROD = np.concatenate([_WK, _WK[:7]])
+_GAUSS = np.zeros(15)
+_GAUSS[[1, 3, 5, 7, 9, 11, 13]] = [_WG[0], _WG[1], _WG[2], _WG[3], _WG[0], _WG[1], _WG[2]]
+
+
+class SurfacePiece:
+    """One piece of the generating curve over the parameter ``[u0, u1]``: ``at(u)`` gives ``(d, z,
+    ds/du)`` (mm, mm, mm per unit of u)."""
+
+    def __init__(self, u0: float, u1: float, at: Callable[[float], tuple[float, float, float]],
+                 u_of_z: Callable[[float], float]) -> None:
+        self.u0, self.u1, self.at, self.u_of_z = u0, u1, at, u_of_z
+
+
+def surface_pieces(pieces: np.ndarray, z_top: float) -> list[SurfacePiece]:
+    """The generating curve of the tool the analytic engine sweeps (:mod:`.profile`'s lower profile,
+    then straight up at ``R``) up to ``z_top`` mm above the tip, less its horizontal pieces."""
+    out: list[SurfacePiece] = []
+    z_end = 0.0
+    for kind, d0, d1, a, b, c in pieces:
+        if kind == _LINE:
+            z0, z1 = a, a + b * (d1 - d0)
+            z_end = z1
+            if b <= 0.0:
+                continue  # horizontal: no angular extent
+            k = math.sqrt(1.0 + b * b) / b  # ds/dz
+
+            def at_line(u: float, d0=d0, a=a, b=b, k=k) -> tuple[float, float, float]:
+                return d0 + (u - a) / b, u, k
+
+            out.append(SurfacePiece(z0, min(z1, z_top), at_line, lambda z: z))
+        else:
+            p0 = math.asin(max(-1.0, min(1.0, (d0 - a) / c)))
+            p1 = math.asin(max(-1.0, min(1.0, (d1 - a) / c)))
+            z_end = b - c * math.cos(p1)
+
+            def at_arc(u: float, a=a, b=b, c=c) -> tuple[float, float, float]:
+                return a + c * math.sin(u), b - c * math.cos(u), c
+
+            def u_of_z(z: float, b=b, c=c, p0=p0, p1=p1) -> float:
+                return min(p1, max(p0, math.acos(max(-1.0, min(1.0, (b - z) / c)))))
+
+            out.append(SurfacePiece(p0, min(p1, u_of_z(z_top)), at_arc, u_of_z))
+        if z_end >= z_top:
+            break
+    radius = float(pieces[-1, 2])
+    if z_top > z_end:
+        out.append(SurfacePiece(z_end, z_top, lambda u: (radius, u, 1.0), lambda z: z))
+    return [p for p in out if p.u1 > p.u0]
+
+
+def contact_area(width: Callable[[float], tuple[float, int]], pieces: np.ndarray, z_lo: float, z_hi: float,
+                 breaks: Sequence[float], rel_tol: float = 1e-7) -> tuple[float, float]:
+    """(area, error estimate) in mm² of the contact between heights ``z_lo`` and ``z_hi`` (mm above
+    the tip); ``width(z)`` is ``(W(z), the number of arcs)`` (rad) and ``breaks`` the heights where
+    ``W`` may jump."""
+    if z_hi <= z_lo:
+        return 0.0, 0.0
+    parts: list[tuple[float, float, float, float, SurfacePiece]] = []  # (-err, a, b, value, piece)
+    evals = 0
+
+    def at(p: SurfacePiece, u: float) -> tuple[float, int]:
+        nonlocal evals
+        evals += 1
+        d, z, ds = p.at(u)
+        w, n = width(z)
+        return d * ds * w, n
+
+    def event(p: SurfacePiece, a: float, b: float, na: int) -> float:
+        """The parameter in (a, b) where the arc count changes from ``na``, to MIN_PART."""
+        while b - a > MIN_PART:
+            m = 0.5 * (a + b)
+            if at(p, m)[1] == na:
+                a = m
+            else:
+                b = m
+        return 0.5 * (a + b)
+
+    def add(p: SurfacePiece, a: float, b: float) -> None:
+        """Rule on [a, b], or, where the arc count differs between its nodes, the parts either side
+        of the first change."""
+        if b - a <= MIN_PART:
+            return
+        n = len(_NODES)
+        fk, us, counts = np.empty(n), np.empty(n), np.empty(n, dtype=np.int64)
+        for i in range(n):
+            # y = a + (b - a) s^2 (3 - 2 s): a square root at either end (an arc born from a point) is
+            # smooth in s
+            t = 0.5 * (_NODES[i] + 1.0)
+            us[i] = a + (b - a) * t * t * (3.0 - 2.0 * t)
+            f, counts[i] = at(p, us[i])
+            fk[i] = f * 3.0 * (b - a) * t * (1.0 - t)
+        order = np.argsort(us)
+        change = np.flatnonzero(counts[order][1:] != counts[order][:-1])
+        if len(change):
+            j = order[change[0]]
+            c = event(p, us[j], us[order[change[0] + 1]], int(counts[j]))
+            add(p, a, c)
+            add(p, c, b)
+            return
+        k, g = _KRONROD @ fk, _GAUSS @ fk
+        resasc = _KRONROD @ np.abs(fk - 0.5 * k)
+        heapq.heappush(parts, (-_error(abs(k - g), resasc), a, b, k, p))
+
+    for p in surface_pieces(pieces, z_hi):
+        lo = max(p.u0, p.u_of_z(z_lo))
+        hi = min(p.u1, p.u_of_z(z_hi))
+        if hi <= lo:
+            continue
+        cuts = sorted({lo, hi, *(u for u in (p.u_of_z(z) for z in breaks if z_lo < z < z_hi) if lo < u < hi)})
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            add(p, a, b)
+    while parts:
+        total = sum(q[3] for q in parts)
+        err = -sum(q[0] for q in parts)
+        if err <= rel_tol * abs(total) or evals >= MAX_EVALS:
+            return total, err
+        e, a, b, v, p = heapq.heappop(parts)
+        if b - a <= 2 * MIN_PART:
+            heapq.heappush(parts, (0.0, a, b, v, p))  # as fine as it gets: its estimate is dropped
+            if all(q[0] == 0.0 for q in parts):
+                break
+            continue
+        m = 0.5 * (a + b)
+        add(p, a, m)
+        add(p, m, b)
+    return sum(q[3] for q in parts), -sum(q[0] for q in parts)
