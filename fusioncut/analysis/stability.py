@@ -54,14 +54,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Sequence
 
 import numpy as np
-from numba import njit
-
 from fusioncut.analysis.dynamics import ToolDynamics
 # the force model's bands and tooth sampling: one definition of the engaged edge for forces and stability
 from fusioncut.analysis.forces import CuttingCoefficients, _bands, _tooth_signal
+from fusioncut.analysis.stability_kernels import zoa_limit_kernel, zoa_table_kernel
 from fusioncut.errors import GeometryError, InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.tools import MillingTool, SpindleDirection
@@ -102,17 +102,17 @@ def _frame(spindle: SpindleDirection, feed_angle: float) -> np.ndarray:
 
 def _alpha_integrals(entry: np.ndarray, span: np.ndarray, kr: np.ndarray) -> np.ndarray:
     """``int a(phi) dphi`` over each band's arcs (padding ``span < 0`` skipped), shape (M, 2, 2)."""
-    a = entry
-    e = entry + np.maximum(span, 0.0)
     valid = span >= 0
+    a = entry
+    e = entry + np.where(valid, span, 0.0)  # a padded arc is empty: its integrals are 0
     k = kr[:, None]
-    s2a, s2e, c2a, c2e = np.sin(2 * a), np.sin(2 * e), np.cos(2 * a), np.cos(2 * e)
-    xx = 0.5 * ((c2e - c2a) - 2 * k * (e - a) + k * (s2e - s2a))
-    xy = 0.5 * (-(s2e - s2a) - 2 * (e - a) + k * (c2e - c2a))
-    yx = 0.5 * (-(s2e - s2a) + 2 * (e - a) + k * (c2e - c2a))
-    yy = 0.5 * (-(c2e - c2a) - 2 * k * (e - a) - k * (s2e - s2a))
-    out = np.stack((np.stack((xx, xy), -1), np.stack((yx, yy), -1)), -2)  # (M, K, 2, 2)
-    return np.where(valid[:, :, None, None], out, 0.0).sum(axis=1)
+    ds2, dc2, dphi = np.sin(2 * e) - np.sin(2 * a), np.cos(2 * e) - np.cos(2 * a), e - a
+    out = np.empty((len(entry), 2, 2))
+    out[:, 0, 0] = (0.5 * (dc2 - 2 * k * dphi + k * ds2)).sum(axis=1)
+    out[:, 0, 1] = (0.5 * (-ds2 - 2 * dphi + k * dc2)).sum(axis=1)
+    out[:, 1, 0] = (0.5 * (-ds2 + 2 * dphi + k * dc2)).sum(axis=1)
+    out[:, 1, 1] = (0.5 * (-dc2 - 2 * k * dphi - k * ds2)).sum(axis=1)
+    return out
 
 
 def cl_directional(emap: EngagementMap, tool: MillingTool, coefficients: CuttingCoefficients,
@@ -174,6 +174,15 @@ class ChatterGrid:
     phi: np.ndarray
     products: np.ndarray
 
+    @cached_property
+    def products_re(self) -> np.ndarray:
+        """``products.real``, contiguous (the compiled passes' input)."""
+        return np.ascontiguousarray(self.products.real)
+
+    @cached_property
+    def products_im(self) -> np.ndarray:
+        return np.ascontiguousarray(self.products.imag)
+
 
 def chatter_grid(dyn: ToolDynamics, points: int = 1000, points_per_mode: int = 2000) -> ChatterGrid:
     lo, hi = dyn.frequency_band_hz()
@@ -198,7 +207,7 @@ def zoa_curves_many(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: i
     hr, hi = coef[:, :2] @ p[:2].real, coef[:, :2] @ p[:2].imag
     dr, di = coef[:, 2:] @ p[2:].real, coef[:, 2:] @ p[2:].imag
     # principal square root of dr + i di in real arithmetic, without cancellation on either side
-    r = np.hypot(dr, di)
+    r = np.sqrt(dr * dr + di * di)  # |d| (as the compiled passes: no overflow at receptances' scales)
     big = np.sqrt(0.5 * (r + np.abs(dr)))
     small = np.where(big > 0, 0.5 * di / np.where(big > 0, big, 1.0), 0.0)
     sr = np.where(dr >= 0, big, np.abs(small))
@@ -281,57 +290,13 @@ def _curve_coefficients(alpha0: np.ndarray) -> np.ndarray:
     return np.stack((0.5 * axx, 0.5 * ayy, 0.25 * axx * axx, 0.5 * axx * ayy - d, 0.25 * ayy * ayy), axis=1)
 
 
-@njit(cache=True)
-def _zoa_limit_kernel(wc, pr, pi_, coef, scale, period):  # pragma: no cover - compiled
-    """:func:`zoa_curves_many` and :meth:`LobeSegments.a_lim` fused, one tooth period per CL: the ZOA
-    limit (mm) of each CL in one pass over the grid, without the curves in memory."""
-    out = np.full(coef.shape[0], np.inf)
-    two_pi = 2.0 * np.pi
-    for c in range(coef.shape[0]):
-        a_prev = np.full(2, np.nan)
-        e_prev = np.zeros(2)
-        best = np.inf
-        for f in range(wc.shape[0]):
-            hr = coef[c, 0] * pr[0, f] + coef[c, 1] * pr[1, f]
-            hi = coef[c, 0] * pi_[0, f] + coef[c, 1] * pi_[1, f]
-            dr = coef[c, 2] * pr[2, f] + coef[c, 3] * pr[3, f] + coef[c, 4] * pr[4, f]
-            di = coef[c, 2] * pi_[2, f] + coef[c, 3] * pi_[3, f] + coef[c, 4] * pi_[4, f]
-            big = np.sqrt(0.5 * (np.hypot(dr, di) + abs(dr)))
-            small = 0.5 * di / big if big > 0 else 0.0
-            if dr >= 0:
-                sr, si = big, small
-            else:
-                sr, si = abs(small), (big if di >= 0 else -big)
-            for b in range(2):
-                lr = hr + sr if b == 0 else hr - sr
-                li = hi + si if b == 0 else hi - si
-                if lr > 0:
-                    a = scale[c] / lr
-                    e = np.pi + 2.0 * np.arctan(li / lr)
-                    if f > 0 and not np.isnan(a_prev[b]) and abs(e - e_prev[b]) < np.pi:
-                        u0 = (wc[f - 1] * period[c] - e_prev[b]) / two_pi
-                        u1 = (wc[f] * period[c] - e) / two_pi
-                        k0, k1 = np.floor(u0), np.floor(u1)
-                        k = max(k0, k1)
-                        if k0 != k1 and k >= 0:
-                            v = a_prev[b] + (k - u0) / (u1 - u0) * (a - a_prev[b])
-                            best = min(best, v)
-                    a_prev[b], e_prev[b] = a, e
-                else:
-                    a_prev[b] = np.nan
-        out[c] = best
-    return out
-
-
 def zoa_a_lim_many(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: np.ndarray) -> np.ndarray:
     """ZOA limit (mm) of many CLs, each at its own speed: ``alpha0`` (C, 2, 2), ``rpm`` (C,); equal to
     :func:`zoa_a_lim` per CL (a compiled pass over the grid per CL, no curves kept)."""
     coef = _curve_coefficients(alpha0)
     scale = np.full(len(coef), 2e3 * math.pi / (flutes * ktc * 1e6))
     period = 60.0 / (flutes * np.asarray(rpm, dtype=float).reshape(-1))
-    p = grid.products
-    return _zoa_limit_kernel(grid.wc, np.ascontiguousarray(p.real), np.ascontiguousarray(p.imag), coef, scale,
-                             period)
+    return zoa_limit_kernel(grid.wc, grid.products_re, grid.products_im, coef, scale, period)
 
 
 def zoa_a_lim(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: np.ndarray | float,
@@ -453,6 +418,26 @@ def nearest_speed_for_all(needs: Sequence[DepthNeed], flutes: int, rpm: float, r
                 inner = mid
         return float(n)
     return math.nan
+
+
+def zoa_limit_and_nearest_many(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: np.ndarray,
+                               ap: np.ndarray, rpm_lo: np.ndarray, rpm_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per CL (``alpha0`` (C, 2, 2), the rest (C,) or scalars) the ZOA limit (mm) at ``rpm`` and the
+    nearest stable speed (rev/min) in ``[rpm_lo, rpm_hi]``: :func:`zoa_a_lim_many` and
+    :func:`nearest_stable_rpm` in one compiled pass (:func:`fusioncut.analysis.stability_kernels.
+    zoa_table_kernel`), equal to them per CL."""
+    coef = _curve_coefficients(alpha0)
+    shape = (len(coef),)
+    rpm, ap, rpm_lo, rpm_hi = (np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), shape))
+                               for v in (rpm, ap, rpm_lo, rpm_hi))
+    scale = np.full(len(coef), 2e3 * math.pi / (flutes * ktc * 1e6))
+    limit, near, status = zoa_table_kernel(grid.wc, grid.products_re, grid.products_im, coef, scale, flutes, rpm,
+                                           ap, rpm_lo, rpm_hi)
+    bad = np.flatnonzero(status)
+    if len(bad):
+        i = bad[0]
+        raise InputError(f"the speed range {rpm_lo[i]:g}..{rpm_hi[i]:g} rev/min spans {status[i]} lobes; narrow it")
+    return limit, near
 
 
 def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes: int, rpm: float, ap: float,
@@ -704,8 +689,11 @@ STABILITY_COLUMNS: tuple[tuple[str, str, str], ...] = (
 
 
 def _key(*arrays: np.ndarray) -> bytes:
-    """Cache key of arrays rounded to 1e-9 (equal engagements of a program's CLs share their limits)."""
-    return b"|".join(np.round(np.asarray(a, dtype=float), 9).tobytes() for a in arrays)
+    """Cache key of arrays rounded to 1e-9 (equal engagements of a program's CLs share their limits): the
+    arrays' sizes, then their values, rounded in one call."""
+    flat = [np.asarray(a, dtype=float).ravel() for a in arrays]
+    sizes = np.array([len(a) for a in flat], dtype=float)
+    return np.round(np.concatenate([sizes, *flat]), 9).tobytes()
 
 
 def _limits(todo: list[tuple[bytes, tuple[CLDirectional, float]]], grid: ChatterGrid, system: ModalSystem,
@@ -717,16 +705,16 @@ def _limits(todo: list[tuple[bytes, tuple[CLDirectional, float]]], grid: Chatter
     if not todo:
         return out
     flutes = todo[0][1][0].flutes  # one tool
-    zoa = zoa_a_lim_many(np.array([cd.alpha0 for _, (cd, _) in todo]), grid, ktc, flutes,
-                         np.array([n for _, (_, n) in todo]))
+    speed = np.array([n for _, (_, n) in todo])
+    lo, hi = rpm_range if rpm_range is not None else (0.5 * speed, 1.5 * speed)
+    zoa, near = zoa_limit_and_nearest_many(np.array([cd.alpha0 for _, (cd, _) in todo]), grid, ktc, flutes, speed,
+                                           np.array([cd.ap for _, (cd, _) in todo]), lo, hi)
     for j, (key, (cd, n)) in enumerate(todo):
         sdl = math.nan
         if sd:
             ref = zoa[j] if math.isfinite(zoa[j]) else cd.ap
             sdl = float(sd_a_lim(cd, system, ktc, n, ref, steps=sd_steps, max_steps=sd_max_steps)[0])
-        lo, hi = rpm_range if rpm_range is not None else (0.5 * n, 1.5 * n)
-        near = n if zoa[j] > cd.ap else nearest_stable_rpm(cd.alpha0, grid, ktc, flutes, n, cd.ap, lo, hi)
-        out[key] = (float(zoa[j]), sdl, float(near))
+        out[key] = (float(zoa[j]), sdl, float(near[j]))
     return out
 
 
