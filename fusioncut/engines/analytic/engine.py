@@ -16,6 +16,8 @@ and holder do). Nothing is built or kept but the sweeps themselves (one row each
 * the flute contact's height range (``ap``): the lowest and highest touching heights among the
   quarter slices and the heights of the stock's top and the earlier sweeps' ends (walking up from
   the bottom and down from the stock's top), each bisected against its neighbour to 1e-10 mm;
+* a slice band **rubs** (:mod:`fusioncut.engines.chip`) by the volume removed within its heights:
+  the removed volume with the stock cut to the band (:meth:`AnalyticEngine._band_volumes`);
 * the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`):
   the flutes' over the flute contact's height range, the shank's (the tool taken straight up at
   ``R`` above the flutes, as it is swept) over its own range above the flutes, found as the
@@ -32,9 +34,8 @@ ones (a checkpoint of another toolpath is refused). There is no B-Rep in-process
 
 The CL segments are the B-Rep engine's (:func:`fusioncut.engines.segments.segments_for`), so CL
 indices match; a piece of a ramp or helix is swept along the programmed path itself, not as the
-B-Rep engine's level step. Not yet here: per-band volumes for the minimum chip thickness (no band
-is called rubbing), a shank or neck of another radius than the flutes' top (see :mod:`.profile`),
-stocks other than a box.
+B-Rep engine's level step. Not yet here: a shank or neck of another radius than the flutes' top
+(see :mod:`.profile`), stocks other than a box.
 """
 from __future__ import annotations
 
@@ -55,6 +56,7 @@ from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, prof
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
 from fusioncut.engines.analytic.volume import boundary_curves, bounding_sweeps, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
+from fusioncut.engines.chip import horizontal_travel
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
@@ -262,9 +264,12 @@ class AnalyticEngine:
                     if z_range[1] >= tool.flute_length else None
                 if shank is not None:
                     shank_area = contact_area(lambda z: _width(args, z), profile.pieces, *shank, breaks)[0]
-            timings["area"] = (time.perf_counter() - t3) * 1e3
+            t4 = time.perf_counter()
+            timings["area"] = (t4 - t3) * 1e3
+            bands = self._band_volumes(row, profile, C, CB, box, z_range, arcs, horizontal_travel(move), removed)
+            timings["bands"] = (time.perf_counter() - t4) * 1e3
             outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
-                                 method=SweepMethod.EXACT, timings=timings, z_range=z_range, band_volumes=None,
+                                 method=SweepMethod.EXACT, timings=timings, z_range=z_range, band_volumes=bands,
                                  flute_area=flute_area, shank_area=shank_area)
         index.add(row, box, z_low)
         self.removed_total += removed
@@ -273,14 +278,50 @@ class AnalyticEngine:
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))
 
+    def _band_volumes(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
+                      box: tuple[float, float, float, float], z_range: tuple[float, float] | None,
+                      arcs: list[list[tuple[float, float]]], travel: float | None,
+                      removed: float) -> tuple[float, ...] | None:
+        """The volume (mm³) removed in each slice band with arcs (:mod:`fusioncut.engines.chip`; 0 for
+        the others), or None where no band can be called rubbing (no minimum chip thickness, no
+        horizontal travel, no contact). A band's volume is the removed volume with the stock cut to the
+        band's heights, integrated to a hundredth of the volume that decides (the minimum chip
+        thickness times the band's height in contact and the travel): only that comparison uses it.
+        Where the CL's whole ``removed`` volume (mm³) is below that, it bounds the band's and stands
+        in for it."""
+        min_chip, dz = self.options.min_chip_thickness, self.options.slice_height
+        if min_chip <= 0 or not travel or z_range is None:
+            return None
+        ez, s = row[6], self.stock
+        out = []
+        for k, band_arcs in enumerate(arcs):
+            lo, hi = max(k * dz, z_range[0]), min((k + 1) * dz, z_range[1])
+            if not band_arcs or hi <= lo:
+                out.append(0.0)
+                continue
+            if removed < min_chip * (hi - lo) * travel:
+                out.append(removed)
+                continue
+            tol = 0.01 * min_chip * (hi - lo) / (2 * profile.radius)  # mm per mm² of a footprint 2 R wide
+            out.append(self._removed(row, profile, C, CB, box, (max(s[2], ez + k * dz), min(s[5], ez + (k + 1) * dz)),
+                                     tol))
+        return tuple(out)
+
     def _removed(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
-                 box: tuple[float, float, float, float]) -> float:
-        """The CL's removed volume (mm³), integrated tile by tile (:func:`tiles`): each tile meets
-        only the earlier sweeps whose boxes overlap it and gets its share of the error budget."""
+                 box: tuple[float, float, float, float], heights: tuple[float, float] | None = None,
+                 tol: float | None = None) -> float:
+        """The CL's removed volume (mm³) between ``heights`` (machine z, mm; default: the stock's),
+        to ``tol`` mm per mm² (default ``volume_tol``), integrated tile by tile (:func:`tiles`): each
+        tile meets only the earlier sweeps whose boxes overlap it and gets its share of the error
+        budget."""
         s = self.stock
+        zb, zt = heights if heights is not None else (s[2], s[5])
+        if zt <= zb:
+            return 0.0
+        tol = self.volume_tol if tol is None else tol
         x0, x1 = max(box[0], s[0]), min(box[2], s[3])
         y0, y1 = max(box[1], s[1]), min(box[3], s[4])
-        if x0 >= x1 or y0 >= y1 or min(row[3], row[6]) >= s[5]:
+        if x0 >= x1 or y0 >= y1 or min(row[3], row[6]) >= zt:
             return 0.0  # beside the stock, or above it: the lower surface is nowhere below the lowest tip
         tables = self._tools
         total = 0.0
@@ -288,18 +329,17 @@ class AnalyticEngine:
             keep = (CB[:, 0] <= tx1) & (CB[:, 2] >= tx0) & (CB[:, 1] <= ty1) & (CB[:, 3] >= ty0)
             Ct, CBt = C[keep], CB[keep]
             bounding = bounding_sweeps(tx0, ty0, tx1, ty1, ORDER_GRID, row, profile.pieces, profile.radius, Ct, CBt,
-                                       tables.profiles, tables.counts, tables.radii, s[2], s[5])
+                                       tables.profiles, tables.counts, tables.radii, zb, zt)
             # the bounding sweeps first: the least lower surface is then met early, and the others'
             # closed-form floors skip them (volume.height_and_cause)
             order = np.argsort(~bounding, kind="stable")
             Ct, CBt = Ct[order], CBt[order]
             rows = np.vstack([row[None, :], Ct])
-            radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5]))
-                     for r in rows]
+            radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (zb, zt)) for r in rows]
             circles, segments = boundary_curves(rows, radii)
             xs = x_breaks(circles, segments, tx0, tx1)
             total += removed_volume(xs, ty0, ty1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
-                                    tables.profiles, tables.counts, tables.radii, s[2], s[5], self.volume_tol)
+                                    tables.profiles, tables.counts, tables.radii, zb, zt, tol)
         return float(total)
 
 

@@ -262,6 +262,7 @@ def assert_agree(moves, tools, stock, **opts):
         assert a.ap == pytest.approx(b.ap, abs=1e-9), a.cl_index
         assert a.contact_area == pytest.approx(b.contact_area, rel=BREP_AREA_REL, abs=1e-9), a.cl_index
         assert a.shank_contact_area == pytest.approx(b.shank_contact_area, rel=BREP_AREA_REL, abs=1e-9), a.cl_index
+        assert a.rubbing_slices == b.rubbing_slices, a.cl_index
         assert len(a.slices) == len(b.slices), a.cl_index
         for s, t in zip(a.slices, b.slices):
             assert s.z == pytest.approx(t.z, abs=1e-9)
@@ -329,6 +330,26 @@ def test_bull_nose_stepping_over_a_level_floor_meets_its_own_cusp(stepover):
         r = R - rc + math.sqrt(rc * rc - (rc - s.z) ** 2) if s.z < rc else R
         assert s.radius == pytest.approx(r, abs=1e-12)
         assert_same_intervals(intervals(s), [(0.0, math.degrees(math.acos(1 - stepover / r)))], 0.005)
+
+
+@pytest.mark.parametrize("offset", [5e-4, -5e-4])
+def test_a_skin_thinner_than_the_minimum_chip_only_rubs(offset):
+    """A deeper pass 0.5 µm beside an earlier slot (as a post's rounding puts it): 3-6 mm above its
+    tip it takes a 0.5 µm skin off the earlier wall, under the default minimum chip thickness
+    (1 µm), so those 3 slices rub and ap is the 3 mm it cuts; with the minimum off they count. The
+    B-Rep engine says the same CL by CL (its layered cells know their per-band volumes)."""
+    from tests.engines.brep.test_engagement_oracles import skin_case
+
+    tool, stock, moves = skin_case(offset)
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0)
+    last = maps[-1]
+    assert last.ap == pytest.approx(3.0, abs=1e-9)
+    assert last.rubbing_slices == 3
+    assert [s.z for s in last.engaged_slices] == pytest.approx([0.5, 1.5, 2.5], abs=1e-9)
+    assert any("rub" in w for w in last.warnings)
+    _, maps = run(moves, {1: tool}, stock, max_segment_length=20.0, min_chip_thickness=0.0)
+    assert len(maps[-1].engaged_slices) == 6 and maps[-1].rubbing_slices == 0
+    assert_agree(moves, {1: tool}, stock, max_segment_length=20.0)
 
 
 def test_agrees_with_brep_cl_by_cl_on_a_real_program():
