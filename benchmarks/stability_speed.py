@@ -42,7 +42,7 @@ from fusioncut.analysis.materials import AL7075_T6_CARBIDE  # noqa: E402
 from fusioncut.model import (AngleInterval, CLStatus, EngagementMap, FlatEndMill, SliceEngagement,  # noqa: E402
                              SpindleDirection)
 
-BASELINE = "44a1d9f"  # the last revision before the vectorised SD intervals and the restricted ZOA search
+BASELINE = "473aa9f"  # stability.py as before the compiled ZOA table pass and the reduced SD spectral radius
 
 
 def load_baseline(rev: str):

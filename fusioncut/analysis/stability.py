@@ -62,6 +62,7 @@ from fusioncut.analysis.dynamics import ToolDynamics
 # the force model's bands and tooth sampling: one definition of the engaged edge for forces and stability
 from fusioncut.analysis.forces import CuttingCoefficients, _bands, _tooth_signal
 from fusioncut.analysis.stability_kernels import zoa_limit_kernel, zoa_table_kernel
+from fusioncut.analysis.stability_sd import interval_integrals, spectral_radius
 from fusioncut.errors import GeometryError, InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.tools import MillingTool, SpindleDirection
@@ -456,36 +457,6 @@ def nearest_stable_rpm(alpha0: np.ndarray, grid: ChatterGrid, ktc: float, flutes
 # semi-discretization
 
 
-def _interval_integrals(a: np.ndarray, dt: np.ndarray, degree: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For a stack of system matrices ``a`` (..., d, d) and steps ``dt`` (s, broadcast against the
-    leading axes): ``E = exp(A dt)``, ``F1 = int_0^dt e^{A(dt-s)} ds`` and ``F2 = int_0^dt e^{A(dt-s)} s ds``.
-
-    Taylor series on ``X = A h``, ``h = dt / 2^q`` with the 1-norm of ``X`` at most 1/2 (truncation below
-    1e-14 relative at ``degree`` 12): ``E = P0``, ``F1 = h P1``, ``F2 = h^2 P2`` with ``Pj = sum X^k / (k +
-    j)!``, evaluated as ``P2`` by Horner, ``P1 = I + X P2``, ``P0 = I + X P1``; then ``q`` doublings of the
-    interval: ``E <- E E``, ``F1 <- F1 + E F1``, ``F2 <- E F2 + h F1 + F2`` (split at ``h``), ``h <- 2 h``.
-    """
-    d = a.shape[-1]
-    h = np.broadcast_to(np.asarray(dt, dtype=float), a.shape[:-2])[..., None, None]
-    norm = float((np.abs(a).sum(axis=-2).max(axis=-1) * h[..., 0, 0]).max()) if a.size else 0.0
-    q = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
-    h = h / 2.0 ** q
-    x = a * h
-    eye = np.eye(d)
-    p2 = eye / math.factorial(degree + 2) + 0.0 * x
-    for k in range(degree - 1, -1, -1):
-        p2 = eye / math.factorial(k + 2) + x @ p2
-    p1 = eye + x @ p2
-    e = eye + x @ p1
-    f1, f2 = h * p1, h * h * p2
-    for _ in range(q):
-        f2 = e @ f2 + h * f1 + f2
-        f1 = f1 + e @ f1
-        e = e @ e
-        h = 2.0 * h
-    return e, f1, f2
-
-
 @dataclass(frozen=True)
 class ModalSystem:
     """The modes as oscillators: masses ``m`` (kg), damping ``c`` (N s/m), stiffness ``k`` (N/m) (n,),
@@ -515,8 +486,10 @@ def _step_matrices(cd: CLDirectional, steps: int, substeps: int) -> np.ndarray:
 
 def sd_spectral_radius(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray, a_mm: np.ndarray,
                        steps: int = 40, substeps: int = 8, b_steps: np.ndarray | None = None) -> np.ndarray:
-    """Spectral radius of the first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``."""
-    return np.abs(sd_multipliers(cd, system, ktc, rpm, a_mm, steps, substeps, b_steps)).max(axis=1)
+    """Spectral radius of the first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``
+    (:func:`fusioncut.analysis.stability_sd.spectral_radius`: the states no interval reads left out, the
+    largest multipliers by Arnoldi's method where verified, else LAPACK's eigenvalues)."""
+    return spectral_radius(sd_monodromy(cd, system, ktc, rpm, a_mm, steps, substeps, b_steps))
 
 
 def sd_critical_multiplier(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: float, a_mm: float,
@@ -532,7 +505,17 @@ def sd_multipliers(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.n
                    a_mm: np.ndarray | float, steps: int = 40, substeps: int = 8,
                    b_steps: np.ndarray | None = None) -> np.ndarray:
     """Eigenvalues of the first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``, shape
-    (pairs, 2 n + steps r) for ``n`` modes in ``r`` directions (1 or 2).
+    (pairs, 2 n + steps r) for ``n`` modes in ``r`` directions (1 or 2) (LAPACK on
+    :func:`sd_monodromy`)."""
+    return np.linalg.eigvals(sd_monodromy(cd, system, ktc, rpm, a_mm, steps, substeps, b_steps))
+
+
+def sd_monodromy(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray | float,
+                 a_mm: np.ndarray | float, steps: int = 40, substeps: int = 8,
+                 b_steps: np.ndarray | None = None) -> np.ndarray:
+    """The first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``, shape (pairs, D, D), ``D =
+    2 n + steps r`` for ``n`` modes in ``r`` directions (1 or 2): the state ``y = (q, q')`` and the
+    delayed displacements.
 
     The delay enters only through the tool's displacement along the directions that have modes, ``R q``
     (``R`` the nonzero rows of ``P``): the delayed states kept are those ``r`` displacements, not the
@@ -558,7 +541,9 @@ def sd_multipliers(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.n
     cut = a_si[:, None, None, None] * minv[None, None, :, None] * w[None]  # a M^-1 W: (nb, steps, n, n)
     amat[:, :, n:, :n] = -np.diag(minv * system.k)[None, None] + cut
     amat[:, :, n:, n:] = -np.diag(minv * system.c)
-    phi0, phi1, f2 = _interval_integrals(amat, dt[:, None])
+    # velocities scaled by the highest natural frequency in the series: the exact integrals, fewer doublings
+    scale = np.r_[np.ones(n), np.full(n, 1.0 / float(np.sqrt(system.k / system.m).max()))]
+    phi0, phi1, f2 = interval_integrals(amat, dt[:, None], scale)
     phi2 = f2 / dt[:, None, None, None]  # int_0^dt e^{A(dt-s)} s ds / dt
     # delayed term: y'' gets -a M^-1 R^T B_r (R q)(t - T); its input matrix acts on the velocity rows
     bq = -a_si[:, None, None, None] * minv[None, None, :, None] * w_in[None]  # (nb, steps, n, r)
@@ -576,8 +561,7 @@ def sd_multipliers(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.n
         top = phi0[:, i] @ y + c_old[:, i] @ delayed[-1] + c_new[:, i] @ newer
         delayed = [now] + delayed[:-1]
         y = top
-    z = np.concatenate([y, *delayed], axis=1)
-    return np.linalg.eigvals(z)
+    return np.concatenate([y, *delayed], axis=1)
 
 
 def sd_steps(system: ModalSystem, flutes: int, rpm: float, steps: int, per_vibration: float) -> int:

@@ -49,3 +49,82 @@ def test_compiled_nearest_speed_refuses_a_range_of_too_many_lobes() -> None:
         zoa_limit_and_nearest_many(slot, grid, KTC, 2, 300.0, 50.0, 1.0, 600.0)
     with pytest.raises(InputError, match="lobes; narrow it"):
         nearest_stable_rpm(slot[0], grid, KTC, 2, 300.0, 50.0, 1.0, 600.0)
+
+
+def _cases():
+    from fusioncut.analysis.stability import ModalSystem, cl_directional
+    from fusioncut.analysis.forces import CuttingCoefficients
+    from fusioncut.model import AngleInterval, CLStatus, EngagementMap, FlatEndMill, SliceEngagement, SpindleDirection
+
+    def cl(entry: float, exit_: float, slices: int) -> EngagementMap:
+        sl = tuple(SliceEngagement(0.25 + 0.5 * k, 0.0, 5.0, (AngleInterval(entry, exit_),)) for k in range(slices))
+        return EngagementMap(0, (1, 0, 0), (0, 0, 0), "T1", SpindleDirection.CW, 0.0, CLStatus.ENGAGED, feed=1.0,
+                             slices=sl, axial_range=(0.0, 0.5 * slices))
+
+    coef = CuttingCoefficients(KTC, KTC / 3, 0.0, 0.0, 0.0, 0.0)
+    two = FlatEndMill(diameter=10.0, flute_length=20.0, flutes=2)
+    three = FlatEndMill(diameter=10.0, flute_length=20.0, flutes=3, helix_angle=30.0)
+    low = 180.0 - math.degrees(math.acos(1 - 2 * 0.1))
+    return [("1-DOF a/D 0.1 down", cl_directional(cl(low, 180.0, 1), two, coef, 0.5), ModalSystem.from_dynamics(BENCH)),
+            ("1-DOF slot", cl_directional(cl(0.0, 180.0, 1), two, coef, 0.5), ModalSystem.from_dynamics(BENCH)),
+            ("3 modes half immersion", cl_directional(cl(90.0, 180.0, 8), three, coef, 0.5),
+             ModalSystem.from_dynamics(EXAMPLE))]
+
+
+@pytest.mark.parametrize("case", range(3))
+def test_sd_spectral_radius_equals_lapack(case) -> None:
+    """The spectral radius with the unread delayed states left out and the largest multipliers by Arnoldi's
+    method equals the largest modulus of LAPACK's eigenvalues of the whole monodromy matrix, to 1e-9, at
+    stable and unstable depths (0.1 to 3 times the ZOA limit) and 30 to 70 steps."""
+    from fusioncut.analysis.stability import sd_multipliers, sd_spectral_radius, zoa_a_lim
+
+    _, cd, system = _cases()[case]
+    dyn = BENCH if case < 2 else EXAMPLE
+    grid = chatter_grid(dyn)
+    rng = np.random.default_rng(case)
+    for steps in (30, 50, 70):
+        rpm = rng.uniform(5000.0, 25000.0, 12)
+        ref = zoa_a_lim(cd.alpha0, grid, KTC, cd.flutes, rpm)
+        depth = np.where(np.isfinite(ref), ref, 1.0) * np.geomspace(0.1, 3.0, 12)
+        fast = sd_spectral_radius(cd, system, KTC, rpm, depth, steps=steps)
+        full = np.abs(sd_multipliers(cd, system, KTC, rpm, depth, steps=steps)).max(axis=1)
+        assert (full > 1).sum() >= 3 and (full < 1).sum() >= 3
+        np.testing.assert_allclose(fast, full, rtol=1e-9)
+
+
+def test_sd_interval_integrals_scaled_equal_unscaled() -> None:
+    """The interval integrals from the series on the scaled matrix S A S^-1 equal the unscaled series', to
+    1e-11 of each matrix's largest entry: the unscaled series needs q = 15 doublings here (1-norm of A dt
+    up to 8e3), each squaring the rounding of the last, 2^15 x 2.2e-16 = 7e-12."""
+    from fusioncut.analysis.stability_sd import interval_integrals
+
+    rng = np.random.default_rng(3)
+    w = 2 * math.pi * np.array([600.0, 1450.0, 660.0])
+    a = np.zeros((20, 6, 6))
+    a[:, :3, 3:] = np.eye(3)
+    a[:, 3:, :3] = -np.diag(w ** 2) + rng.normal(0.0, 0.3, (20, 3, 3)) * w.max() ** 2
+    a[:, 3:, 3:] = -np.diag(2 * 0.03 * w)
+    dt = rng.uniform(2e-5, 1e-4, (20,))
+    scale = np.r_[np.ones(3), np.full(3, 1 / w.max())]
+    for got, want in zip(interval_integrals(a, dt, scale), interval_integrals(a, dt)):
+        err = np.abs(got - want).max(axis=(1, 2)) / np.abs(want).max(axis=(1, 2))
+        assert err.max() < 1e-11, err.max()
+
+
+@pytest.mark.parametrize("case", [0, 2])
+def test_sd_lobes_equal_those_with_lapack_eigenvalues(case, monkeypatch) -> None:
+    """sd_a_lim on 8 speeds with the fast spectral radius equals sd_a_lim with LAPACK's eigenvalues of the
+    whole monodromy matrix (the computation before) to 1e-6: the same depths are evaluated as long as no
+    decision rho >= 1 flips, and the radii agree to 1e-9."""
+    from fusioncut.analysis import stability
+    from fusioncut.analysis.stability import sd_a_lim, zoa_a_lim
+
+    _, cd, system = _cases()[case]
+    grid = chatter_grid(BENCH if case < 2 else EXAMPLE)
+    rpm = np.linspace(6000.0, 21000.0, 8)
+    ref = zoa_a_lim(cd.alpha0, grid, KTC, cd.flutes, rpm)
+    fast = sd_a_lim(cd, system, KTC, rpm, ref)
+    monkeypatch.setattr(stability, "spectral_radius", lambda z: np.abs(np.linalg.eigvals(z)).max(axis=1))
+    slow = sd_a_lim(cd, system, KTC, rpm, ref)
+    assert np.all(np.isfinite(fast))
+    np.testing.assert_allclose(fast, slow, rtol=1e-6)
