@@ -285,26 +285,33 @@ class AnalyticEngine:
         """The volume (mm³) removed in each slice band with arcs (:mod:`fusioncut.engines.chip`; 0 for
         the others), or None where no band can be called rubbing (no minimum chip thickness, no
         horizontal travel, no contact). A band's volume is the removed volume with the stock cut to the
-        band's heights, integrated to a hundredth of the volume that decides (the minimum chip
-        thickness times the band's height in contact and the travel): only that comparison uses it.
-        Where the CL's whole ``removed`` volume (mm³) is below that, it bounds the band's and stands
-        in for it."""
+        band's heights, integrated only as finely as the comparison with the volume that decides (the
+        minimum chip thickness times the band's height in contact and the travel) needs, which is all
+        it is used for. Where the CL's whole ``removed`` volume (mm³) is below that, it bounds the
+        band's and stands in for it."""
         min_chip, dz = self.options.min_chip_thickness, self.options.slice_height
         if min_chip <= 0 or not travel or z_range is None:
             return None
         ez, s = row[6], self.stock
+        area = (min(box[2], s[3]) - max(box[0], s[0])) * (min(box[3], s[4]) - max(box[1], s[1]))  # mm²
         out = []
         for k, band_arcs in enumerate(arcs):
             lo, hi = max(k * dz, z_range[0]), min((k + 1) * dz, z_range[1])
             if not band_arcs or hi <= lo:
                 out.append(0.0)
                 continue
-            if removed < min_chip * (hi - lo) * travel:
+            threshold = min_chip * (hi - lo) * travel  # mm³
+            if removed < threshold:
                 out.append(removed)
                 continue
-            tol = 0.01 * min_chip * (hi - lo) / (2 * profile.radius)  # mm per mm² of a footprint 2 R wide
-            out.append(self._removed(row, profile, C, CB, box, (max(s[2], ez + k * dz), min(s[5], ez + (k + 1) * dz)),
-                                     tol))
+            heights = (max(s[2], ez + k * dz), min(s[5], ez + (k + 1) * dz))
+            # a loose integral first (a tenth of the whole volume); where its error bound leaves it on
+            # either side of the threshold, one to a hundredth of the threshold
+            budget = 0.1 * removed  # mm³
+            estimate = self._removed(row, profile, C, CB, box, heights, budget / area)
+            if abs(estimate - threshold) <= 2 * budget:
+                estimate = self._removed(row, profile, C, CB, box, heights, 0.01 * threshold / area)
+            out.append(estimate)
         return tuple(out)
 
     def _removed(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
