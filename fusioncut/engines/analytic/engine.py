@@ -17,7 +17,7 @@ and holder do). Nothing is built or kept but the sweeps themselves (one row each
   quarter slices and the heights of the stock's top and the earlier sweeps' ends (walking up from
   the bottom and down from the stock's top), each bisected against its neighbour to 1e-10 mm;
 * a slice band **rubs** (:mod:`fusioncut.engines.chip`) by the volume removed within its heights:
-  the removed volume with the stock cut to the band (:meth:`AnalyticEngine._band_volumes`);
+  the removed volume's integral split by the bands' edges on the same nodes;
 * the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`):
   the flutes' over the flute contact's height range, the shank's (the tool taken straight up at
   ``R`` above the flutes, as it is swept) over its own range above the flutes, found as the
@@ -56,7 +56,6 @@ from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, prof
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
 from fusioncut.engines.analytic.volume import boundary_curves, bounding_sweeps, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
-from fusioncut.engines.chip import horizontal_travel
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
@@ -232,7 +231,8 @@ class AnalyticEngine:
         C, CB = index.rows[near], index.boxes[near]
         PP, NPC, RR = self._tools.profiles, self._tools.counts, self._tools.radii
         t1 = time.perf_counter()
-        removed = self._removed(row, profile, C, CB, box)
+        edges = self._band_edges(row[6], tool)
+        removed, band_volumes = self._removed(row, profile, C, CB, box, edges)
         t2 = time.perf_counter()
         timings = {"index": (t1 - t0) * 1e3, "volume": (t2 - t1) * 1e3}
         idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR
@@ -264,13 +264,11 @@ class AnalyticEngine:
                     if z_range[1] >= tool.flute_length else None
                 if shank is not None:
                     shank_area = contact_area(lambda z: _width(args, z), profile.pieces, *shank, breaks)[0]
-            t4 = time.perf_counter()
-            timings["area"] = (t4 - t3) * 1e3
-            bands = self._band_volumes(row, profile, C, CB, box, z_range, arcs, horizontal_travel(move), removed)
-            timings["bands"] = (time.perf_counter() - t4) * 1e3
+            timings["area"] = (time.perf_counter() - t3) * 1e3
             outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
-                                 method=SweepMethod.EXACT, timings=timings, z_range=z_range, band_volumes=bands,
-                                 flute_area=flute_area, shank_area=shank_area)
+                                 method=SweepMethod.EXACT, timings=timings, z_range=z_range,
+                                 band_volumes=band_volumes if len(edges) else None, flute_area=flute_area,
+                                 shank_area=shank_area)
         index.add(row, box, z_low)
         self.removed_total += removed
         m = engagement_map(cl, outcome, heights, arcs, self.options.slice_height,
@@ -278,76 +276,48 @@ class AnalyticEngine:
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))
 
-    def _band_volumes(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
-                      box: tuple[float, float, float, float], z_range: tuple[float, float] | None,
-                      arcs: list[list[tuple[float, float]]], travel: float | None,
-                      removed: float) -> tuple[float, ...] | None:
-        """The volume (mm³) removed in each slice band with arcs (:mod:`fusioncut.engines.chip`; 0 for
-        the others), or None where no band can be called rubbing (no minimum chip thickness, no
-        horizontal travel, no contact). A band's volume is the removed volume with the stock cut to the
-        band's heights, integrated only as finely as the comparison with the volume that decides (the
-        minimum chip thickness times the band's height in contact and the travel) needs, which is all
-        it is used for. Where the CL's whole ``removed`` volume (mm³) is below that, it bounds the
-        band's and stands in for it."""
-        min_chip, dz = self.options.min_chip_thickness, self.options.slice_height
-        if min_chip <= 0 or not travel or z_range is None:
-            return None
-        ez, s = row[6], self.stock
-        area = (min(box[2], s[3]) - max(box[0], s[0])) * (min(box[3], s[4]) - max(box[1], s[1]))  # mm²
-        out = []
-        for k, band_arcs in enumerate(arcs):
-            lo, hi = max(k * dz, z_range[0]), min((k + 1) * dz, z_range[1])
-            if not band_arcs or hi <= lo:
-                out.append(0.0)
-                continue
-            threshold = min_chip * (hi - lo) * travel  # mm³
-            if removed < threshold:
-                out.append(removed)
-                continue
-            heights = (max(s[2], ez + k * dz), min(s[5], ez + (k + 1) * dz))
-            # a loose integral first (a tenth of the whole volume); where its error bound leaves it on
-            # either side of the threshold, one to a hundredth of the threshold
-            budget = 0.1 * removed  # mm³
-            estimate = self._removed(row, profile, C, CB, box, heights, budget / area)
-            if abs(estimate - threshold) <= 2 * budget:
-                estimate = self._removed(row, profile, C, CB, box, heights, 0.01 * threshold / area)
-            out.append(estimate)
-        return tuple(out)
+    def _band_edges(self, ez: float, tool: MillingTool) -> np.ndarray:
+        """Machine heights (mm) of the slice bands' edges from the tip at ``ez`` up to the flutes' or
+        the stock's top, whichever is lower: the removed volume is split by them for the minimum chip
+        thickness (:mod:`fusioncut.engines.chip`). None (empty) where that test is off."""
+        dz = self.options.slice_height
+        top = min(tool.flute_length, self.stock[5] - ez)
+        if self.options.min_chip_thickness <= 0 or top <= 0:
+            return np.zeros(0)
+        return ez + dz * np.arange(math.ceil(top / dz - 1e-9) + 1)
 
     def _removed(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
-                 box: tuple[float, float, float, float], heights: tuple[float, float] | None = None,
-                 tol: float | None = None) -> float:
-        """The CL's removed volume (mm³) between ``heights`` (machine z, mm; default: the stock's),
-        to ``tol`` mm per mm² (default ``volume_tol``), integrated tile by tile (:func:`tiles`): each
-        tile meets only the earlier sweeps whose boxes overlap it and gets its share of the error
-        budget."""
+                 box: tuple[float, float, float, float], edges: np.ndarray) -> tuple[float, tuple[float, ...]]:
+        """The CL's removed volume (mm³) and its parts within the bands between ``edges`` (machine z,
+        mm; :func:`.volume.removed_volume`), integrated tile by tile (:func:`tiles`): each tile meets
+        only the earlier sweeps whose boxes overlap it and gets its share of the error budget."""
         s = self.stock
-        zb, zt = heights if heights is not None else (s[2], s[5])
-        if zt <= zb:
-            return 0.0
-        tol = self.volume_tol if tol is None else tol
+        bands = np.zeros(max(len(edges) - 1, 0))
         x0, x1 = max(box[0], s[0]), min(box[2], s[3])
         y0, y1 = max(box[1], s[1]), min(box[3], s[4])
-        if x0 >= x1 or y0 >= y1 or min(row[3], row[6]) >= zt:
-            return 0.0  # beside the stock, or above it: the lower surface is nowhere below the lowest tip
+        if x0 >= x1 or y0 >= y1 or min(row[3], row[6]) >= s[5]:
+            return 0.0, tuple(bands)  # beside the stock, or above it: the lower surface is nowhere below the lowest tip
         tables = self._tools
         total = 0.0
         for tx0, ty0, tx1, ty1 in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius):
             keep = (CB[:, 0] <= tx1) & (CB[:, 2] >= tx0) & (CB[:, 1] <= ty1) & (CB[:, 3] >= ty0)
             Ct, CBt = C[keep], CB[keep]
             bounding = bounding_sweeps(tx0, ty0, tx1, ty1, ORDER_GRID, row, profile.pieces, profile.radius, Ct, CBt,
-                                       tables.profiles, tables.counts, tables.radii, zb, zt)
+                                       tables.profiles, tables.counts, tables.radii, s[2], s[5])
             # the bounding sweeps first: the least lower surface is then met early, and the others'
             # closed-form floors skip them (volume.height_and_cause)
             order = np.argsort(~bounding, kind="stable")
             Ct, CBt = Ct[order], CBt[order]
             rows = np.vstack([row[None, :], Ct])
-            radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (zb, zt)) for r in rows]
+            radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5]))
+                     for r in rows]
             circles, segments = boundary_curves(rows, radii)
             xs = x_breaks(circles, segments, tx0, tx1)
-            total += removed_volume(xs, ty0, ty1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
-                                    tables.profiles, tables.counts, tables.radii, zb, zt, tol)
-        return float(total)
+            v, vb = removed_volume(xs, ty0, ty1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
+                                   tables.profiles, tables.counts, tables.radii, s[2], s[5], self.volume_tol, edges)
+            total += v
+            bands += vb
+        return float(total), tuple(float(v) for v in bands)
 
 
 def _arcs_at(args: tuple, z: float) -> list[tuple[float, float]]:

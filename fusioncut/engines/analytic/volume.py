@@ -244,17 +244,34 @@ def _error(diff, scale):
 
 
 @njit(cache=True)
-def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+def _band_overlaps(low, v, edges, out, w):
+    """Adds ``w`` times the length (mm) of [low, low + v] within each band [edges[i], edges[i + 1]]
+    to ``out[i]``."""
+    high = low + v
+    for i in range(edges.shape[0] - 1):
+        a = max(low, edges[i])
+        b = min(high, edges[i + 1])
+        if b > a:
+            out[i] += w * (b - a)
+
+
+@njit(cache=True)
+def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb):
+    """Gauss-Kronrod on y in [a, b] at ``x``: (the integral, its error); the Kronrod sums of the
+    removed height within each band of ``edges`` are added to ``kb``."""
     k = 0.0
     g = 0.0
     m = 0.0
     for i in range(15):
         u, wk, wg = _node(i)
         y, w = _smooth(a, b, u)
-        f = removed_height(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt) * w
+        v, _, own = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        f = v * w
         k += wk * f
         g += wg * f
         m += wk * abs(f)
+        if v > 0.0:
+            _band_overlaps(max(own, zb), v, edges, kb, wk * w)
     return k, _error(abs(k - g), m)
 
 
@@ -294,18 +311,22 @@ def _worst(err, n):
 
 
 @njit(cache=True)
-def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget):
-    """Integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all."""
+def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, edges):
+    """(integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all;
+    the same integral of the removed height within each band of ``edges`` (its error not controlled
+    on its own: it shares the whole integral's nodes))."""
     pts, live = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    nb = max(edges.shape[0] - 1, 0)
     lo = np.empty(_PANELS)
     hi = np.empty(_PANELS)
     val = np.empty(_PANELS)
     err = np.empty(_PANELS)
+    bands = np.zeros((_PANELS, nb))
     n = 0
     for p in range(pts.shape[0] - 1):
         if live[p] and n < _PANELS:
             lo[n], hi[n] = pts[p], pts[p + 1]
-            val[n], err[n] = _gk_y(x, lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            val[n], err[n] = _gk_y(x, lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n])
             n += 1
     while n < _PANELS:
         k, total = _worst(err, n)
@@ -317,25 +338,28 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
             continue
         m = 0.5 * (a + b)
         hi[k] = m
-        val[k], err[k] = _gk_y(x, a, m, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        bands[k] = 0.0
+        val[k], err[k] = _gk_y(x, a, m, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[k])
         lo[n], hi[n] = m, b
-        val[n], err[n] = _gk_y(x, m, b, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        val[n], err[n] = _gk_y(x, m, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n])
         n += 1
-    return val[:n].sum()
+    return val[:n].sum(), bands[:n].sum(axis=0)
 
 
 @njit(cache=True)
-def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget):
+def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, edges, kb):
     k = 0.0
     g = 0.0
     m = 0.0
     for i in range(15):
         u, wk, wg = _node(i)
         x, w = _smooth(a, b, u)
-        f = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget) * w
+        v, vb = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, edges)
+        f = v * w
         k += wk * f
         g += wg * f
         m += wk * abs(f)
+        kb += (wk * w) * vb
     return k, _error(abs(k - g), m)
 
 
@@ -386,24 +410,29 @@ def _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
 
 
 @njit(cache=True)
-def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol):
-    """The removed volume (mm³) over x between the sorted break points ``xs`` and y in [ylo, yhi],
-    to ``tol`` mm per mm² of that rectangle: a tenth of the budget goes to the inner integrals
-    (each line's error within a tenth of ``tol (yhi - ylo)``), the rest to the outer one."""
+def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol, edges):
+    """(the removed volume (mm³) over x between the sorted break points ``xs`` and y in [ylo, yhi],
+    to ``tol`` mm per mm² of that rectangle; the volume removed within each band [edges[i],
+    edges[i + 1]] of machine heights, on the same nodes). A tenth of the budget goes to the inner
+    integrals (each line's error within a tenth of ``tol (yhi - ylo)``), the rest to the outer one.
+    The bands' volumes are as exact as the whole where the removed height's ends do not cross a
+    band's edge within a part; where they do, the part is only as fine as the whole needs."""
     area = (xs[-1] - xs[0]) * (yhi - ylo)
     xs = _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     budget = 0.9 * tol * area
     inner = 0.1 * tol * (yhi - ylo)
+    nb = max(edges.shape[0] - 1, 0)
     lo = np.empty(_PANELS)
     hi = np.empty(_PANELS)
     val = np.empty(_PANELS)
     err = np.empty(_PANELS)
+    bands = np.zeros((_PANELS, nb))
     n = 0
     for p in range(xs.shape[0] - 1):
         if xs[p + 1] - xs[p] > 0.0 and n < _PANELS:
             lo[n], hi[n] = xs[p], xs[p + 1]
             val[n], err[n] = _gk_x(lo[n], hi[n], ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt,
-                                   inner)
+                                   inner, edges, bands[n])
             n += 1
     while n < _PANELS:
         k, total = _worst(err, n)
@@ -415,11 +444,14 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
             continue
         m = 0.5 * (a + b)
         hi[k] = m
-        val[k], err[k] = _gk_x(a, m, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner)
+        bands[k] = 0.0
+        val[k], err[k] = _gk_x(a, m, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner, edges,
+                               bands[k])
         lo[n], hi[n] = m, b
-        val[n], err[n] = _gk_x(m, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner)
+        val[n], err[n] = _gk_x(m, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner, edges,
+                               bands[n])
         n += 1
-    return val[:n].sum()
+    return val[:n].sum(), bands[:n].sum(axis=0)
 
 
 def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tuple[np.ndarray, np.ndarray]:
