@@ -13,7 +13,8 @@ version of :mod:`fusioncut.analysis.stability` in the same run.
   CL, the ZOA limits as reference depths, on two systems: the 1-DOF milling benchmark of Insperger &
   Stepan (922 Hz, a/D 0.1 down-milling, 2 flutes) and the three modes of
   ``docs/stability_modes_example.json`` with a 4 mm deep, 3-flute 30 deg helix half-immersion cut.
-  CPU seconds.
+  CPU seconds, after a warm-up at two of the speeds (loading the compiled kernels, a one-time cost per
+  process).
 * **Baseline**: the same calls on ``fusioncut/analysis/stability.py`` as of ``--baseline`` (a git
   revision, read with ``git show``), so that the ratio holds on a loaded machine where the absolute
   times do not. Set ``OPENBLAS_NUM_THREADS=1``: on a shared machine OpenBLAS threads slow the batched
@@ -127,6 +128,7 @@ def bench_sd(mod, case, speeds: int) -> tuple[float, np.ndarray]:
     grid, system = mod.chatter_grid(dyn), mod.ModalSystem.from_dynamics(dyn)
     rpm, zoa = mod.zoa_lobes(cd.alpha0, grid, k.ktc, cd.flutes, lo, hi, speeds)
     ref = np.where(np.isfinite(zoa), zoa, cd.ap)
+    mod.sd_a_lim(cd, system, k.ktc, rpm[::max(1, speeds // 2)], ref[::max(1, speeds // 2)], max_steps=120)  # warm-up
     out = {}
     t = cpu(lambda: out.setdefault("lim", mod.sd_a_lim(cd, system, k.ktc, rpm, ref, max_steps=120)))
     return t, out["lim"]

@@ -62,7 +62,7 @@ from fusioncut.analysis.dynamics import ToolDynamics
 # the force model's bands and tooth sampling: one definition of the engaged edge for forces and stability
 from fusioncut.analysis.forces import CuttingCoefficients, _bands, _tooth_signal
 from fusioncut.analysis.stability_kernels import zoa_limit_kernel, zoa_table_kernel
-from fusioncut.analysis.stability_sd import interval_integrals, spectral_radius
+from fusioncut.analysis.stability_sd import interval_integrals, monodromy, spectral_radius
 from fusioncut.errors import GeometryError, InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.tools import MillingTool, SpindleDirection
@@ -489,7 +489,7 @@ def sd_spectral_radius(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: 
     """Spectral radius of the first-order SD monodromy matrix at each pair ``(rpm[i], a_mm[i])``
     (:func:`fusioncut.analysis.stability_sd.spectral_radius`: the states no interval reads left out, the
     largest multipliers by Arnoldi's method where verified, else LAPACK's eigenvalues)."""
-    return spectral_radius(sd_monodromy(cd, system, ktc, rpm, a_mm, steps, substeps, b_steps))
+    return spectral_radius(*_sd_steps_of(cd, system, ktc, rpm, a_mm, steps, substeps, b_steps))
 
 
 def sd_critical_multiplier(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: float, a_mm: float,
@@ -520,6 +520,15 @@ def sd_monodromy(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.nda
     The delay enters only through the tool's displacement along the directions that have modes, ``R q``
     (``R`` the nonzero rows of ``P``): the delayed states kept are those ``r`` displacements, not the
     ``n`` modal coordinates, which leaves out only multipliers that are zero."""
+    return monodromy(*_sd_steps_of(cd, system, ktc, rpm, a_mm, steps, substeps, b_steps))
+
+
+def _sd_steps_of(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray | float,
+                 a_mm: np.ndarray | float, steps: int, substeps: int,
+                 b_steps: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per pair and interval of SD the maps of one step (:func:`fusioncut.analysis.stability_sd.monodromy`):
+    ``phi0`` (pairs, steps, 2n, 2n) on the state, ``c_old`` and ``c_new`` (pairs, steps, 2n, r) on the
+    delayed displacements ``R q_{i-m}`` and ``R q_{i-m+1}``, and ``R`` (r, n)."""
     rpm = np.atleast_1d(np.asarray(rpm, dtype=float))
     a_mm = np.atleast_1d(np.asarray(a_mm, dtype=float))
     rpm, a_mm = np.broadcast_arrays(rpm, a_mm)
@@ -527,7 +536,6 @@ def sd_monodromy(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.nda
     b = _step_matrices(cd, steps, substeps) if b_steps is None else b_steps
     dirs = np.flatnonzero(np.abs(system.p).sum(axis=1) > 0)
     red = system.p[dirs]  # R: (r, n)
-    r = len(dirs)
     # W = P^T B P = R^T B_r R (N/m per m): the cut's stiffness on the modes, and its delayed input on R q
     w_in = 0.5 * ktc * 1e6 * np.einsum("ai,sab->sib", red, b[:, dirs][:, :, dirs])  # (steps, n, r)
     w = w_in @ red  # (steps, n, n)
@@ -549,19 +557,7 @@ def sd_monodromy(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.nda
     bq = -a_si[:, None, None, None] * minv[None, None, :, None] * w_in[None]  # (nb, steps, n, r)
     c_old = (phi1 - phi2)[..., n:] @ bq   # coefficient of R q_{i-m}
     c_new = phi2[..., n:] @ bq            # coefficient of R q_{i-m+1}
-    # rows of the monodromy matrix, propagated step by step: y (the state) and the delayed displacements
-    # R q_{i-1} .. R q_{i-m} (a list: shifting it moves references, not rows)
-    dim = d2 + m * r
-    eye = np.broadcast_to(np.eye(dim), (nb, dim, dim))
-    y = eye[:, :d2].copy()
-    delayed = [eye[:, d2 + j * r: d2 + (j + 1) * r] for j in range(m)]
-    for i in range(m):
-        now = red @ y[:, :n]
-        newer = delayed[-2] if m > 1 else now  # R q_{i-m+1}
-        top = phi0[:, i] @ y + c_old[:, i] @ delayed[-1] + c_new[:, i] @ newer
-        delayed = [now] + delayed[:-1]
-        y = top
-    return np.concatenate([y, *delayed], axis=1)
+    return phi0, c_old, c_new, red
 
 
 def sd_steps(system: ModalSystem, flutes: int, rpm: float, steps: int, per_vibration: float) -> int:
@@ -577,12 +573,14 @@ def sd_a_lim(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: Sequence[f
              rel_tol: float = 1e-3, max_steps: int | None = None) -> np.ndarray:
     """SD limiting depth (mm) at each speed: the smallest depth on the geometric grid ``a_ref x [0.05,
     10]`` (``grid_points``) that is unstable, refined against the stable grid point below it to a bracket
-    ``hi / lo < 1 + rel_tol`` (the result its geometric mean) by the Illinois variant of regula falsi on
-    ``log rho`` against ``log a`` (``rho`` the spectral radius; a point within a quarter of the tolerance
-    of either end is moved inside, so the bracket shrinks every step). ``a_ref`` is a scale per speed
-    (the ZOA limit; where that is not finite the CL's ``ap``). ``inf`` when the whole grid is stable; the
-    smallest grid depth when that is already unstable. The grid is evaluated up to its first point above
-    ``a_ref`` for every speed, then one point at a time for the speeds still stable. Steps per tooth
+    ``hi / lo < 1 + rel_tol`` (the result its geometric mean) by regula falsi on ``log rho`` against ``log
+    a`` (``rho`` the spectral radius; a point within a quarter of the tolerance of either end is moved
+    inside, so the bracket shrinks every step; after two points on one side of the root the next is put
+    half a tolerance beyond the estimate, after three the end kept is halved as in the Illinois variant).
+    ``a_ref`` is a scale per speed (the ZOA limit; where that is not finite the CL's ``ap``). ``inf`` when
+    the whole grid is stable; the smallest grid depth when that is already unstable. The grid up to its
+    first point above ``a_ref`` is probed as :func:`_sd_a_lim_fixed` says, then evaluated one point at a
+    time for the speeds still stable. Steps per tooth
     period: :func:`sd_steps`; NaN (not computed) where they would exceed ``max_steps`` (low speeds
     against the modes: the monodromy matrix grows with the steps and its eigenvalues cost their cube;
     the lobes are dense there and close to ZOA's)."""
@@ -604,6 +602,14 @@ def sd_a_lim(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: Sequence[f
 
 def _sd_a_lim_fixed(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.ndarray, ref: np.ndarray,
                     steps: int, substeps: int, grid_points: int, rel_tol: float) -> np.ndarray:
+    """:func:`sd_a_lim` at speeds sharing their steps. The head of the depth grid (its points up to the first
+    above ``a_ref``) is probed at the two points around ``a_ref`` and at the third and fifth below it (2.26
+    times apart; the lowest 0.17 ``a_ref`` on the default grid); below the lowest unstable probe only the
+    points between it and the stable probe under it (all points, under the lowest probe) are evaluated,
+    and the whole head at the speeds next (in ``rpm``) to one found unstable below the probe under
+    ``a_ref``, repeated while that finds more. The other head points are taken as stable as the stable
+    probes around them: an instability confined between two stable probes below ``a_ref`` (less than 2.26
+    times in depth) at a speed whose neighbours have none below ``a_ref`` is not looked for."""
     b = _step_matrices(cd, steps, substeps)
 
     def log_rho(rows: np.ndarray, depth: np.ndarray) -> np.ndarray:
@@ -614,8 +620,36 @@ def _sd_a_lim_fixed(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.
     g = np.full((nr, grid_points), np.nan)  # log rho on the grid, NaN: not evaluated
     first_above = int(np.searchsorted(ratios, 1.0, side="right"))
     head = min(first_above + 1, grid_points)
-    rows = np.repeat(np.arange(nr), head)
-    g[:, :head] = log_rho(rows, (ref[:, None] * ratios[None, :head]).ravel()).reshape(nr, head)
+
+    def evaluate(rows: np.ndarray, cols: Sequence[int]) -> None:
+        cols = np.asarray(cols, dtype=int)
+        if len(rows) and len(cols):
+            g[np.repeat(rows, len(cols)), np.tile(cols, len(rows))] = log_rho(
+                np.repeat(rows, len(cols)), (ref[rows, None] * ratios[None, cols]).ravel())
+
+    # the head of the grid probed at the two points around a_ref and two below, 2.26x apart; where a probe
+    # is unstable, the head points between it and the stable probe below it (all below the lowest) too
+    probes = [j for j in (first_above - 5, first_above - 3, first_above - 1, first_above) if 0 <= j < head]
+    evaluate(np.arange(nr), probes)
+    hit = g[:, probes] >= 0
+    first_hit = np.where(hit.any(axis=1), hit.argmax(axis=1), -1)
+    for k, j in enumerate(probes):
+        gap = range(probes[k - 1] + 1 if k else 0, j)
+        evaluate(np.flatnonzero(first_hit == k), list(gap))
+    # the whole head at the speeds next to one unstable below the probe under a_ref (islands run across speeds)
+    order = np.argsort(rpm, kind="stable")
+    whole = np.zeros(nr, dtype=bool)
+    while True:
+        low = order[(g[order, :max(first_above - 1, 0)] >= 0).any(axis=1)]
+        pos = np.flatnonzero(np.isin(order, low))
+        near = order[np.unique(np.clip(np.concatenate((pos - 1, pos + 1)), 0, nr - 1))] if len(pos) else pos
+        near = near[~whole[near]]
+        near = near[np.isnan(g[near, :head]).any(axis=1)]
+        if not len(near):
+            break
+        whole[near] = True
+        rows, cols = np.nonzero(np.isnan(g[near, :head]))
+        g[near[rows], cols] = log_rho(near[rows], ref[near[rows]] * ratios[cols])
     for j in range(head, grid_points):
         todo = np.flatnonzero(~(g[:, :j] >= 0).any(axis=1))
         if not len(todo):
@@ -631,22 +665,28 @@ def _sd_a_lim_fixed(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.
     xl, xh = np.log(ref[todo] * ratios[j - 1]), np.log(ref[todo] * ratios[j])
     gl, gh = g[todo, j - 1], g[todo, j]
     side = np.zeros(len(todo))  # +1: the last point replaced the unstable end, -1: the stable one
+    same = np.zeros(len(todo))  # how many points in a row replaced that end
     tol = math.log1p(rel_tol)
     for _ in range(60):
         live = np.flatnonzero(xh - xl >= tol)
         if not len(live):
             break
-        lo, hi, fl, fh = xl[live], xh[live], gl[live], gh[live]
+        lo, hi, fl, fh, sd, sm = xl[live], xh[live], gl[live], gh[live], side[live], same[live]
         x = hi - fh * (hi - lo) / (fh - fl)
+        # after two points on one side the estimate is close: half a tolerance past it towards the other end
+        # closes the bracket (and a third point on one side gets the Illinois halving instead)
+        x = np.where(sm == 2, x - sd * 0.5 * tol, x)
         x = np.clip(x, lo + 0.25 * tol, hi - 0.25 * tol)
         gx = log_rho(todo[live], np.exp(x))
         up = gx >= 0
-        # Illinois: an end kept twice in a row has its value halved, pulling the next point towards it
-        gl[live] = np.where(up & (side[live] > 0), 0.5 * fl, np.where(up, fl, gx))
-        gh[live] = np.where(~up & (side[live] < 0), 0.5 * fh, np.where(up, gx, fh))
+        # Illinois: an end kept three times in a row has its value halved, pulling the next point towards it
+        gl[live] = np.where(up & (sd > 0) & (sm >= 2), 0.5 * fl, np.where(up, fl, gx))
+        gh[live] = np.where(~up & (sd < 0) & (sm >= 2), 0.5 * fh, np.where(up, gx, fh))
         xh[live] = np.where(up, x, hi)
         xl[live] = np.where(up, lo, x)
-        side[live] = np.where(up, 1.0, -1.0)
+        now = np.where(up, 1.0, -1.0)
+        same[live] = np.where(now == sd, sm + 1, 1.0)
+        side[live] = now
     out[todo] = np.exp(0.5 * (xl + xh))
     return out
 

@@ -115,9 +115,7 @@ def _seg_limit(sw0, sw1, sa0, sa1, se0, se1, ns, t):  # pragma: no cover - compi
         k = max(k0, k1)
         if k0 != k1 and k >= 0:
             frac = (k - u0) / (u1 - u0)
-            v = sa0[s] + frac * (sa1[s] - sa0[s])
-            if v < best:
-                best = v
+            best = min(best, sa0[s] + frac * (sa1[s] - sa0[s]))
     return best
 
 
