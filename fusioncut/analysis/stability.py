@@ -45,8 +45,9 @@ oscillators ``m q'' + c q' + k q = P^T F`` (``P`` sums the modal displacements o
 the time-periodic matrix is replaced by its mean (midpoint rule on ``substeps`` points), the delayed
 state is interpolated linearly between the grid points ``T`` back, and the interval is solved exactly
 (matrix exponentials). The product over one period is the monodromy matrix: stable when its spectral
-radius is below 1. ``a_lim`` is the smallest depth at which that radius reaches 1, bracketed on a
-geometric grid around the ZOA limit and bisected.
+radius is below 1 (:mod:`fusioncut.analysis.stability_sd`). ``a_lim`` is the smallest depth at which that
+radius reaches 1, bracketed on a geometric grid around the ZOA limit and refined by regula falsi
+(:func:`sd_a_lim`).
 
 Units: ``Ktc`` N/mm² (the project's coefficients), receptances m/N, depths mm, speeds rev/min.
 """
