@@ -105,38 +105,169 @@ def zoa_limit_kernel(wc, pr, pi_, coef, scale, period):  # pragma: no cover - co
 
 
 @njit(cache=True)
-def _seg_limit(sw0, sw1, sa0, sa1, se0, se1, ns, t):  # pragma: no cover - compiled
-    """``LobeSegments.a_lim`` of the first ``ns`` segments at the tooth period ``t``."""
+def _seg_limit(seg, ns, t):  # pragma: no cover - compiled
+    """``LobeSegments.a_lim`` of the first ``ns`` segments ``seg`` (rows ``wc0, wc1, a0, a1, e0, e1``) at the
+    tooth period ``t``."""
     best = np.inf
     for s in range(ns):
-        u0 = (sw0[s] * t - se0[s]) / _TWO_PI
-        u1 = (sw1[s] * t - se1[s]) / _TWO_PI
+        u0 = (seg[0, s] * t - seg[4, s]) / _TWO_PI
+        u1 = (seg[1, s] * t - seg[5, s]) / _TWO_PI
         k0, k1 = np.floor(u0), np.floor(u1)
         k = max(k0, k1)
         if k0 != k1 and k >= 0:
             frac = (k - u0) / (u1 - u0)
-            best = min(best, sa0[s] + frac * (sa1[s] - sa0[s]))
+            best = min(best, seg[2, s] + frac * (seg[3, s] - seg[2, s]))
     return best
 
 
 @njit(cache=True)
+def _segments_below(wc, a, lr, li, eps, ap, seg):  # pragma: no cover - compiled
+    """Fill ``seg`` with the lobe segments that can go below ``ap`` (``LobeSegments.of(below=ap)``); their
+    count."""
+    ns = 0
+    for f in range(wc.shape[0] - 1):
+        for b in range(2):
+            a0, a1 = a[f, b], a[f + 1, b]
+            if np.isnan(a0) or np.isnan(a1) or not min(a0, a1) <= ap:
+                continue
+            e0 = _phase(eps, lr, li, f, b)
+            e1 = _phase(eps, lr, li, f + 1, b)
+            if not abs(e1 - e0) < np.pi:
+                continue
+            seg[0, ns], seg[1, ns], seg[2, ns], seg[3, ns], seg[4, ns], seg[5, ns] = wc[f], wc[f + 1], a0, a1, e0, e1
+            ns += 1
+    return ns
+
+
+@njit(cache=True)
+def _unstable_ranges(wc, a, lr, li, eps, ap, flutes, lo_c, hi_c, idx, run, turns):  # pragma: no cover
+    """``unstable_speed_ranges`` before merging: runs of grid points with ``a < ap`` of either eigenvalue
+    through every lobe that reaches ``[lo_c, hi_c]``. Returns ``(lo, hi, count, lobes)``: ``lobes`` is 0,
+    or the lobes an eigenvalue's runs span when that exceeds 5000 (then nothing else is computed)."""
+    nf = wc.shape[0]
+    rlo = np.empty(16)
+    rhi = np.empty(16)
+    nr = 0
+    for b in range(2):
+        npts = 0
+        for f in range(nf):
+            if not np.isnan(a[f, b]) and a[f, b] < ap:
+                idx[npts] = f
+                npts += 1
+        if npts == 0:
+            continue
+        nruns = 0
+        for p in range(npts):
+            f = idx[p]
+            e = _phase(eps, lr, li, f, b)
+            start = p == 0 or idx[p] - idx[p - 1] > 1
+            if not start:
+                start = abs(e - _phase(eps, lr, li, f - 1, b)) >= np.pi
+            if start:
+                nruns += 1
+            run[p] = nruns - 1
+            turns[p] = 60.0 * wc[f] / flutes / _TWO_PI
+        kmin = np.inf
+        kmax = -np.inf
+        for p in range(npts):
+            e = eps[idx[p], b]
+            kmin = min(kmin, turns[p] / hi_c - e / _TWO_PI)
+            kmax = max(kmax, turns[p] / lo_c - e / _TWO_PI)
+        k_lo = max(int(np.floor(kmin)), 0)
+        k_hi = int(np.ceil(kmax))
+        if k_hi - k_lo > 5000:
+            return rlo, rhi, nr, k_hi - k_lo
+        for k in range(k_lo, k_hi + 1):
+            q = 0
+            while q < npts:
+                r = run[q]
+                nmin, nmax = np.inf, -np.inf
+                while q < npts and run[q] == r:
+                    f = idx[q]
+                    n = 60.0 * wc[f] / (flutes * (eps[f, b] + _TWO_PI * k))
+                    nmin, nmax = min(nmin, n), max(nmax, n)
+                    q += 1
+                if nmax >= lo_c and nmin <= hi_c:
+                    if nr == rlo.shape[0]:
+                        grown_lo, grown_hi = np.empty(2 * nr), np.empty(2 * nr)
+                        grown_lo[:nr], grown_hi[:nr] = rlo, rhi
+                        rlo, rhi = grown_lo, grown_hi
+                    rlo[nr], rhi[nr] = nmin, nmax
+                    nr += 1
+    return rlo, rhi, nr, 0
+
+
+@njit(cache=True)
+def _nearest(seg, ns, flutes, rpm_c, ap, lo_c, hi_c, mlo, mhi):  # pragma: no cover - compiled
+    """``nearest_speed_for_all`` of one CL from its merged unstable ranges ``mlo, mhi``: the ends inside
+    ``[lo_c, hi_c]`` nearest first, 20 steps of 0.05 % outwards, 12 bisections; NaN when none works."""
+    nk = 0
+    cs = np.empty(2 * mlo.shape[0])
+    sense = np.empty(2 * mlo.shape[0])
+    for j in range(mlo.shape[0]):
+        if mlo[j] > lo_c:
+            cs[nk], sense[nk] = mlo[j], -1.0
+            nk += 1
+        if mhi[j] < hi_c:
+            cs[nk], sense[nk] = mhi[j], 1.0
+            nk += 1
+    for j in range(1, nk):  # insertion sort on |speed - rpm|: stable, as Python's sorted
+        x, s = cs[j], sense[j]
+        i = j - 1
+        while i >= 0 and abs(cs[i] - rpm_c) > abs(x - rpm_c):
+            cs[i + 1], sense[i + 1] = cs[i], sense[i]
+            i -= 1
+        cs[i + 1], sense[i + 1] = x, s
+    for j in range(nk):
+        speed = cs[j]
+        found = -1
+        prev = speed
+        for i in range(1, 21):
+            n = speed * (1 + sense[j] * 5e-4 * i)
+            if n >= lo_c and n <= hi_c and _seg_limit(seg, ns, 60.0 / (flutes * n)) > ap:
+                found = i
+                break
+            prev = n
+        if found < 0:
+            continue
+        inner = prev
+        n = speed * (1 + sense[j] * 5e-4 * found)
+        for _ in range(12):
+            mid = 0.5 * (inner + n)
+            if _seg_limit(seg, ns, 60.0 / (flutes * mid)) > ap:
+                n = mid
+            else:
+                inner = mid
+        return n
+    return np.nan
+
+
+@njit(cache=True)
 def _merge_clip(lo, hi, n, rpm_lo, rpm_hi):  # pragma: no cover - compiled
-    """``np.clip(_merged(ranges), rpm_lo, rpm_hi)`` of the first ``n`` ranges: sorted by their low end,
-    overlapping ones joined, then clipped. Returns (lo, hi) arrays."""
-    if n == 0:
-        return np.zeros(0), np.zeros(0)
-    order = np.argsort(lo[:n])
+    """``np.clip(_merged(ranges), rpm_lo, rpm_hi)`` of the first ``n`` ranges: sorted by their low end
+    (insertion sort: a few ranges), overlapping ones joined, then clipped. Returns (lo, hi) arrays."""
+    slo = lo[:n].copy()
+    shi = hi[:n].copy()
+    for j in range(1, n):
+        x, y = slo[j], shi[j]
+        i = j - 1
+        while i >= 0 and slo[i] > x:
+            slo[i + 1], shi[i + 1] = slo[i], shi[i]
+            i -= 1
+        slo[i + 1], shi[i + 1] = x, y
     mlo = np.empty(n)
     mhi = np.empty(n)
     m = 0
     for j in range(n):
-        a, b = lo[order[j]], hi[order[j]]
-        if m > 0 and a <= mhi[m - 1]:
-            mhi[m - 1] = max(mhi[m - 1], b)
+        if m > 0 and slo[j] <= mhi[m - 1]:
+            mhi[m - 1] = max(mhi[m - 1], shi[j])
         else:
-            mlo[m], mhi[m] = a, b
+            mlo[m], mhi[m] = slo[j], shi[j]
             m += 1
-    return np.minimum(np.maximum(mlo[:m], rpm_lo), rpm_hi), np.minimum(np.maximum(mhi[:m], rpm_lo), rpm_hi)
+    for j in range(m):
+        mlo[j] = min(max(mlo[j], rpm_lo), rpm_hi)
+        mhi[j] = min(max(mhi[j], rpm_lo), rpm_hi)
+    return mlo[:m], mhi[:m]
 
 
 @njit(cache=True)
@@ -155,9 +286,7 @@ def zoa_table_kernel(wc, pr, pi_, coef, scale, flutes, rpm, depth, rpm_lo, rpm_h
     lr = np.empty((nf, 2))
     li = np.empty((nf, 2))
     eps = np.empty((nf, 2))
-    cap = 2 * nf
-    sw0, sw1, sa0, sa1 = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
-    se0, se1 = np.empty(cap), np.empty(cap)
+    seg = np.empty((6, 2 * nf))
     idx = np.empty(nf, dtype=np.int64)
     run = np.empty(nf, dtype=np.int64)
     turns = np.empty(nf)
@@ -170,116 +299,15 @@ def zoa_table_kernel(wc, pr, pi_, coef, scale, flutes, rpm, depth, rpm_lo, rpm_h
         if limit[c] > ap:
             out[c] = rpm[c]
             continue
-        lo_c, hi_c = rpm_lo[c], rpm_hi[c]
-        # the lobe segments that can go below ap (LobeSegments.of(below=ap))
-        ns = 0
-        for f in range(nf - 1):
-            for b in range(2):
-                a0, a1 = a[f, b], a[f + 1, b]
-                if np.isnan(a0) or np.isnan(a1) or not min(a0, a1) <= ap:
-                    continue
-                e0 = _phase(eps, lr, li, f, b)
-                e1 = _phase(eps, lr, li, f + 1, b)
-                if not abs(e1 - e0) < np.pi:
-                    continue
-                sw0[ns], sw1[ns], sa0[ns], sa1[ns], se0[ns], se1[ns] = wc[f], wc[f + 1], a0, a1, e0, e1
-                ns += 1
-        if _seg_limit(sw0, sw1, sa0, sa1, se0, se1, ns, per) > ap:
+        ns = _segments_below(wc, a, lr, li, eps, ap, seg)
+        if _seg_limit(seg, ns, per) > ap:
             out[c] = rpm[c]
             continue
-        # unstable speed ranges (unstable_speed_ranges): runs of grid points with a < ap, through every lobe
-        rlo = np.empty(16)
-        rhi = np.empty(16)
-        nr = 0
-        for b in range(2):
-            npts = 0
-            for f in range(nf):
-                if not np.isnan(a[f, b]) and a[f, b] < ap:
-                    idx[npts] = f
-                    npts += 1
-            if npts == 0:
-                continue
-            nruns = 0
-            for p in range(npts):
-                f = idx[p]
-                e = _phase(eps, lr, li, f, b)
-                start = p == 0 or idx[p] - idx[p - 1] > 1
-                if not start:
-                    start = abs(e - _phase(eps, lr, li, f - 1, b)) >= np.pi
-                if start:
-                    nruns += 1
-                run[p] = nruns - 1
-                turns[p] = 60.0 * wc[f] / flutes / _TWO_PI
-            kmin = np.inf
-            kmax = -np.inf
-            for p in range(npts):
-                e = eps[idx[p], b]
-                kmin = min(kmin, turns[p] / hi_c - e / _TWO_PI)
-                kmax = max(kmax, turns[p] / lo_c - e / _TWO_PI)
-            k_lo = max(int(np.floor(kmin)), 0)
-            k_hi = int(np.ceil(kmax))
-            if k_hi - k_lo > 5000:
-                status[c] = k_hi - k_lo
-                break
-            for k in range(k_lo, k_hi + 1):
-                q = 0
-                while q < npts:
-                    r = run[q]
-                    nmin, nmax = np.inf, -np.inf
-                    while q < npts and run[q] == r:
-                        f = idx[q]
-                        n = 60.0 * wc[f] / (flutes * (eps[f, b] + _TWO_PI * k))
-                        nmin, nmax = min(nmin, n), max(nmax, n)
-                        q += 1
-                    if nmax >= lo_c and nmin <= hi_c:
-                        if nr == rlo.shape[0]:
-                            rlo = np.concatenate((rlo, np.empty(nr)))
-                            rhi = np.concatenate((rhi, np.empty(nr)))
-                        rlo[nr], rhi[nr] = nmin, nmax
-                        nr += 1
-        if status[c] != 0:
+        rlo, rhi, nr, lobes = _unstable_ranges(wc, a, lr, li, eps, ap, flutes, rpm_lo[c], rpm_hi[c], idx, run, turns)
+        if lobes:
+            status[c] = lobes
             continue
-        mlo, mhi = _merge_clip(rlo, rhi, nr, lo_c, hi_c)
-        mlo, mhi = _merge_clip(mlo, mhi, mlo.shape[0], lo_c, hi_c)
-        # candidates: the ends of the unstable ranges inside the searched range, nearest first (stable order)
-        nk = 0
-        cs = np.empty(2 * mlo.shape[0])
-        sense = np.empty(2 * mlo.shape[0])
-        for j in range(mlo.shape[0]):
-            if mlo[j] > lo_c:
-                cs[nk], sense[nk] = mlo[j], -1.0
-                nk += 1
-            if mhi[j] < hi_c:
-                cs[nk], sense[nk] = mhi[j], 1.0
-                nk += 1
-        for j in range(1, nk):  # insertion sort on |speed - rpm|: stable, as Python's sorted
-            x, s = cs[j], sense[j]
-            i = j - 1
-            while i >= 0 and abs(cs[i] - rpm[c]) > abs(x - rpm[c]):
-                cs[i + 1], sense[i + 1] = cs[i], sense[i]
-                i -= 1
-            cs[i + 1], sense[i + 1] = x, s
-        for j in range(nk):
-            speed = cs[j]
-            found = -1
-            prev = speed
-            for i in range(1, 21):
-                n = speed * (1 + sense[j] * 5e-4 * i)
-                t = 60.0 / (flutes * n)
-                if n >= lo_c and n <= hi_c and _seg_limit(sw0, sw1, sa0, sa1, se0, se1, ns, t) > ap:
-                    found = i
-                    break
-                prev = n
-            if found < 0:
-                continue
-            inner = prev
-            n = speed * (1 + sense[j] * 5e-4 * found)
-            for _ in range(12):
-                mid = 0.5 * (inner + n)
-                if _seg_limit(sw0, sw1, sa0, sa1, se0, se1, ns, 60.0 / (flutes * mid)) > ap:
-                    n = mid
-                else:
-                    inner = mid
-            out[c] = n
-            break
+        mlo, mhi = _merge_clip(rlo, rhi, nr, rpm_lo[c], rpm_hi[c])
+        mlo, mhi = _merge_clip(mlo, mhi, mlo.shape[0], rpm_lo[c], rpm_hi[c])
+        out[c] = _nearest(seg, ns, flutes, rpm[c], ap, rpm_lo[c], rpm_hi[c], mlo, mhi)
     return limit, out, status

@@ -37,90 +37,16 @@ def interval_integrals(a: np.ndarray, dt: np.ndarray, scale: np.ndarray | None =
     With ``scale`` (d,) the series runs on ``S A S^-1`` (``S = diag(scale)``) and the results are turned
     back (``f(S A S^-1) = S f(A) S^-1``): with displacements and velocities in one state, ``scale = (1,
     .., 1/w, ..)`` for a frequency ``w`` of the modes makes the matrix's norm about ``w dt`` instead of
-    ``w^2 dt`` and saves most doublings. Per matrix, compiled (:func:`_series`): Taylor series on ``X = A
-    h``, ``h = dt / 2^q`` with the 1-norm of ``X`` at most 1/2 (truncation below 1e-14 relative at
-    ``degree`` 12): ``E = P0``, ``F1 = h P1``, ``F2 = h^2 P2`` with ``Pj = sum X^k / (k + j)!``, evaluated as
-    ``P2`` by Horner, ``P1 = I + X P2``, ``P0 = I + X P1``; then ``q`` doublings of the interval: ``E <- E
-    E``, ``F1 <- F1 + E F1``, ``F2 <- E F2 + h F1 + F2`` (split at ``h``), ``h <- 2 h``
-    (:func:`interval_integrals_reference` is the same series in NumPy, one ``q`` for the stack).
+    ``w^2 dt`` and saves most doublings. Taylor series on ``X = A h``, ``h = dt / 2^q`` with the 1-norm of
+    ``X`` at most 1/2 over the stack (truncation below 1e-14 relative at ``degree`` 12): ``E = P0``, ``F1 =
+    h P1``, ``F2 = h^2 P2`` with ``Pj = sum X^k / (k + j)!``, evaluated as ``P2`` by Horner, ``P1 = I + X
+    P2``, ``P0 = I + X P1``; then ``q`` doublings of the interval: ``E <- E E``, ``F1 <- F1 + E F1``, ``F2
+    <- E F2 + h F1 + F2`` (split at ``h``), ``h <- 2 h``.
     """
-    d = a.shape[-1]
-    shape = a.shape
-    ratio = scale[:, None] / scale[None, :] if scale is not None else np.ones((d, d))
-    flat = np.ascontiguousarray((a * ratio).reshape(-1, d, d))
-    h = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=float), shape[:-2]).reshape(-1))
-    e, f1, f2 = _series(flat, h, degree, _INV_FACTORIAL)
-    return e.reshape(shape) / ratio, f1.reshape(shape) / ratio, f2.reshape(shape) / ratio
-
-
-_INV_FACTORIAL = np.array([1.0 / math.factorial(k) for k in range(40)])
-
-
-@njit(cache=True)
-def _matmul(a, b, out):  # pragma: no cover - compiled
-    d = a.shape[0]
-    for i in range(d):
-        for j in range(d):
-            acc = 0.0
-            for k in range(d):
-                acc += a[i, k] * b[k, j]
-            out[i, j] = acc
-
-
-@njit(cache=True)
-def _series(a, dt, degree, inv_factorial):  # pragma: no cover - compiled
-    """:func:`interval_integrals` of each matrix ``a[s]`` (already scaled) with its step ``dt[s]``."""
-    count, d = a.shape[0], a.shape[1]
-    out_e, out_f1, out_f2 = np.empty((count, d, d)), np.empty((count, d, d)), np.empty((count, d, d))
-    x, p2, t, p1 = np.empty((d, d)), np.empty((d, d)), np.empty((d, d)), np.empty((d, d))
-    e, f1, f2 = np.empty((d, d)), np.empty((d, d)), np.empty((d, d))
-    for s in range(count):
-        norm = 0.0
-        for j in range(d):
-            col = 0.0
-            for i in range(d):
-                col += abs(a[s, i, j])
-            norm = max(norm, col * dt[s])
-        q = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
-        h = dt[s] / 2.0 ** q
-        for i in range(d):
-            for j in range(d):
-                x[i, j] = a[s, i, j] * h
-                p2[i, j] = inv_factorial[degree + 2] if i == j else 0.0
-        for k in range(degree - 1, -1, -1):
-            _matmul(x, p2, t)
-            for i in range(d):
-                for j in range(d):
-                    p2[i, j] = t[i, j] + (inv_factorial[k + 2] if i == j else 0.0)
-        _matmul(x, p2, t)
-        for i in range(d):
-            for j in range(d):
-                p1[i, j] = t[i, j] + (1.0 if i == j else 0.0)
-        _matmul(x, p1, t)
-        for i in range(d):
-            for j in range(d):
-                e[i, j] = t[i, j] + (1.0 if i == j else 0.0)
-                f1[i, j] = h * p1[i, j]
-                f2[i, j] = h * h * p2[i, j]
-        for _ in range(q):
-            _matmul(e, f2, t)
-            for i in range(d):
-                for j in range(d):
-                    f2[i, j] = t[i, j] + h * f1[i, j] + f2[i, j]
-            _matmul(e, f1, t)
-            for i in range(d):
-                for j in range(d):
-                    f1[i, j] += t[i, j]
-            _matmul(e, e, t)
-            e[:, :] = t
-            h = 2.0 * h
-        out_e[s], out_f1[s], out_f2[s] = e, f1, f2
-    return out_e, out_f1, out_f2
-
-
-def interval_integrals_reference(a: np.ndarray, dt: np.ndarray, degree: int = 12) -> tuple[np.ndarray, ...]:
-    """:func:`interval_integrals` unscaled in NumPy, one number of doublings for the whole stack (the
-    computation before the compiled one; the tests' reference)."""
+    if scale is not None:
+        ratio = scale[:, None] / scale[None, :]
+        e, f1, f2 = interval_integrals(a * ratio, dt, None, degree)
+        return e / ratio, f1 / ratio, f2 / ratio
     d = a.shape[-1]
     h = np.broadcast_to(np.asarray(dt, dtype=float), a.shape[:-2])[..., None, None]
     norm = float((np.abs(a).sum(axis=-2).max(axis=-1) * h[..., 0, 0]).max()) if a.size else 0.0
