@@ -59,6 +59,7 @@ from functools import cached_property
 from typing import Sequence
 
 import numpy as np
+
 from fusioncut.analysis.dynamics import ToolDynamics
 # the force model's bands and tooth sampling: one definition of the engaged edge for forces and stability
 from fusioncut.analysis.forces import CuttingCoefficients, _bands, _tooth_signal
