@@ -25,7 +25,7 @@ only touches a boundary (tangent to a stock face or an earlier wall), rounding l
 
 The contact's height range needs the highest (and lowest) height where any point of the slice is
 engaged; near it the engaged arc shrinks to a point, which a scan would miss. So
-:func:`slice_touches` maximises the **material margin** (the least of the distances to the stock's
+:func:`slice_margin` maximises the **material margin** (the least of the distances to the stock's
 faces and of the earlier sweeps' lower surfaces above the point, mm) over the front arc, sampled
 and refined by golden section: the slice touches material where that maximum is positive.
 """
@@ -36,6 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
+from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.sweeps import arc_depth, end_velocity, sweep_floor, sweep_lower
 
 N_SCAN = 720
@@ -46,12 +47,27 @@ _GOLDEN = 0.6180339887498949
 
 
 @njit(cache=True)
-def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
-    """True where the stock held material at (px, py, pz) before the CL (earlier sweeps ``C``, their
-    footprint boxes ``CB``; tool tables ``PP``, ``NPC``, ``RR``; ``stock`` = x0, y0, z0, x1, y1, z1)."""
+def _cell(px, py, G, gstart):
+    """(first, end) of the slice of the grid's item list for the cell holding (px, py); ``G`` = (x0,
+    y0, cell width, cells a side), ``gstart`` the cells' offsets (row-major in x), see
+    :func:`sweep_grid`."""
+    n = int(G[3])
+    i = min(max(int((px - G[0]) / G[2]), 0), n - 1)
+    j = min(max(int((py - G[1]) / G[2]), 0), n - 1)
+    c = i * n + j
+    return gstart[c], gstart[c + 1]
+
+
+@njit(cache=True)
+def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    """True where the stock held material at (px, py, pz) before the CL: earlier sweeps ``C`` (their
+    footprint boxes ``CB``; tool tables ``PP``, ``NPC``, ``RR``; ``stock`` = x0, y0, z0, x1, y1, z1),
+    of which only those the grid cell of the point lists are looked at (:func:`sweep_grid`)."""
     if not (stock[0] < px < stock[3] and stock[1] < py < stock[4] and stock[2] < pz < stock[5]):
         return False
-    for j in range(C.shape[0]):
+    first, end = _cell(px, py, G, gstart)
+    for q in range(first, end):
+        j = gitems[q]
         if px < CB[j, 0] - eps or px > CB[j, 2] + eps or py < CB[j, 1] - eps or py > CB[j, 3] + eps:
             continue
         if C[j, 3] > pz + eps and C[j, 6] > pz + eps:
@@ -62,6 +78,26 @@ def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
         if sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) <= pz + eps:
             return False
     return True
+
+
+def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.ndarray, R: float, C: np.ndarray,
+               PP: np.ndarray, NPC: np.ndarray, RR: np.ndarray, zb: float, zt: float, eps: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(G, gstart, gitems): the square (x0, y0) + [0, width]² cut into ``n`` x ``n`` cells, and per
+    cell the rows of ``C`` that can give the least lower surface in it (:func:`.cells.relevant_sweeps`,
+    footprints widened by ``eps``); a point then meets only its cell's sweeps. Points outside the
+    square take the nearest cell: callers keep them inside."""
+    w = width / n
+    starts = [0]
+    items: list[int] = []
+    for i in range(n):
+        for j in range(n):
+            keep = relevant_sweeps(x0 + i * w, y0 + j * w, x0 + (i + 1) * w, y0 + (j + 1) * w, S, P, R, C, PP, NPC,
+                                   RR, zb, zt, eps)[1]
+            items.extend(np.flatnonzero(keep).tolist())
+            starts.append(len(items))
+    return (np.array([x0, y0, w, n], dtype=np.float64), np.array(starts, dtype=np.int64),
+            np.array(items, dtype=np.int64))
 
 
 @njit(cache=True)
@@ -76,8 +112,9 @@ def _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps):
 
 
 @njit(cache=True)
-def _engaged(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps):
-    if not material_at(ex + r * math.cos(theta), ey + r * math.sin(theta), pz, C, CB, PP, NPC, RR, stock, eps):
+def _engaged(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    px, py = ex + r * math.cos(theta), ey + r * math.sin(theta)
+    if not material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
         return False
     return _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)
 
@@ -97,7 +134,7 @@ def front_limits(vx, vy, lift):
 
 
 @njit(cache=True)
-def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, n_scan):
+def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems, n_scan):
     """Engaged machine arcs (start, span) in rad, counter-clockwise, of the slice ``zs`` mm above the
     tip (radius ``r``, ``drho = rho'(zs)``) of the tool at the end of sweep ``S``. An (n, 2) array;
     one row (0, 2 pi) when engaged all round."""
@@ -115,7 +152,7 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, n_scan):
     th = np.sort(th)
     on = np.empty(n, dtype=np.bool_)
     for i in range(n):
-        on[i] = _engaged(th[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+        on[i] = _engaged(th[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
     out = np.empty((n, 2))
     if on.all():
         out[0, 0], out[0, 1] = 0.0, TWO_PI
@@ -137,7 +174,8 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, n_scan):
             if b - a <= ANGLE_TOL:
                 break
             m = 0.5 * (a + b)
-            if _engaged(m % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps) == on[i]:
+            if _engaged(m % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart,
+                        gitems) == on[i]:
                 a = m
             else:
                 b = m
@@ -177,11 +215,14 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, n_scan):
 
 
 @njit(cache=True)
-def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
+def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
     """How deep (mm) the point lies in the material before the CL: the least distance to a stock
-    face and height below an earlier sweep's lower surface (less ``eps``); <= 0 where there is none."""
+    face and height below an earlier sweep's lower surface (less ``eps``); <= 0 where there is none.
+    Only the sweeps of the point's grid cell are looked at (:func:`sweep_grid`)."""
     m = min(px - stock[0], stock[3] - px, py - stock[1], stock[4] - py, pz - stock[2], stock[5] - pz)
-    for j in range(C.shape[0]):
+    first, end = _cell(px, py, G, gstart)
+    for q in range(first, end):
+        j = gitems[q]
         if m <= 0.0:
             return m
         if px < CB[j, 0] - eps or px > CB[j, 2] + eps or py < CB[j, 1] - eps or py > CB[j, 3] + eps:
@@ -198,15 +239,17 @@ def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps):
 
 
 @njit(cache=True)
-def _margin_at(t, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps):
-    return material_margin(ex + r * math.cos(t), ey + r * math.sin(t), pz, C, CB, PP, NPC, RR, stock, eps)
+def _margin_at(t, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    return material_margin(ex + r * math.cos(t), ey + r * math.sin(t), pz, C, CB, PP, NPC, RR, stock, eps, G, gstart,
+                           gitems)
 
 
 @njit(cache=True)
-def slice_touches(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, n_scan):
-    """Whether the slice ``zs`` mm above the tip holds an engaged point: the material margin's
-    maximum over the front arc (sampled at ``n_scan`` angles a turn, local maxima refined by golden
-    section to ~1e-12 rad) is positive, and for an arc the point is on its sweep's front."""
+def slice_margin(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems, n_scan):
+    """The slice ``zs`` mm above the tip holds an engaged point where this is positive (mm): the
+    material margin's maximum over the front arc (sampled at ``n_scan`` angles a turn; where no
+    sample is positive, the local maxima refined by golden section to ~1e-12 rad), for an arc only
+    at points on its sweep's front; -inf where the slice has no front."""
     ex, ey, ez = S[4], S[5], S[6]
     vx, vy, vz = end_velocity(S)
     lift = 0.0 if vz == 0.0 else drho * vz
@@ -219,35 +262,43 @@ def slice_touches(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, n_scan):
     elif lift <= -h:
         t0, t1 = 0.0, TWO_PI  # all round: a plunge, or steeply down
     else:
-        return False  # no front: the tool moves up faster than its flank rises
+        return -math.inf  # no front: the tool moves up faster than its flank rises
     n = max(8, int(math.ceil((t1 - t0) / TWO_PI * n_scan)))
     ts = np.empty(n + 1)
     ms = np.empty(n + 1)
     for i in range(n + 1):
         ts[i] = t0 + (t1 - t0) * i / n
-        ms[i] = _margin_at(ts[i], ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+        ms[i] = _margin_at(ts[i], ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
+    best = -math.inf
     for i in range(n + 1):
-        if ms[i] > 0.0 and (S[0] == 0.0 or _front_at(ts[i] % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)):
-            return True
+        if ms[i] > best and (S[0] == 0.0 or _front_at(ts[i] % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)):
+            best = ms[i]
+    if best > 0.0:
+        return best
     for i in range(n + 1):
         if (i > 0 and ms[i] < ms[i - 1]) or (i < n and ms[i] < ms[i + 1]):
             continue
+        if i > 0 and ms[i] == ms[i - 1] and (i == n or ms[i] == ms[i + 1]):
+            continue  # inside a plateau: its ends are refined
         a = ts[max(i - 1, 0)]
         b = ts[min(i + 1, n)]
         c = b - _GOLDEN * (b - a)
         d = a + _GOLDEN * (b - a)
-        fc = _margin_at(c, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
-        fd = _margin_at(d, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+        fc = _margin_at(c, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
+        fd = _margin_at(d, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
         for _ in range(48):
             if fc >= fd:
                 b, d, fd = d, c, fc
                 c = b - _GOLDEN * (b - a)
-                fc = _margin_at(c, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+                fc = _margin_at(c, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
             else:
                 a, c, fc = c, d, fd
                 d = a + _GOLDEN * (b - a)
-                fd = _margin_at(d, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps)
+                fd = _margin_at(d, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
         t = c if fc >= fd else d
-        if max(fc, fd) > 0.0 and (S[0] == 0.0 or _front_at(t % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)):
-            return True
-    return False
+        v = max(fc, fd)
+        if v > best and (S[0] == 0.0 or _front_at(t % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)):
+            best = v
+            if best > 0.0:
+                return best
+    return best

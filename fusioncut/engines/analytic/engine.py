@@ -6,8 +6,9 @@ the sweeps of CLs 0..k-1 (:mod:`.sweeps`; the tool extends straight up, as a 3-a
 and holder do). Nothing is built or kept but the sweeps themselves (one row each, :mod:`.index`):
 
 * the **removed volume** of CL k integrates ``min(h_k, top) - max(L_k, bottom)`` over its
-  footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint, tile by tile
-  (:func:`tiles`: a tile meets only the earlier sweeps whose boxes overlap it);
+  footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint, cell by cell: tiles
+  (:func:`tiles`), quartered while many earlier sweeps can shape the removed height in them, each
+  cell integrated with only those (:mod:`.cells`; a cell where nothing can be removed is skipped);
 * its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
   where material was before the CL and the tool's surface is on the sweep's front, their ends
   bisected to 1e-10 rad; the slices are laid out and converted to immersion angles as the B-Rep
@@ -50,11 +51,12 @@ from pathlib import Path
 import numpy as np
 
 from fusioncut.engines.analytic.area import contact_area
-from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_touches
+from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
-from fusioncut.engines.analytic.volume import boundary_curves, bounding_sweeps, removed_volume, x_breaks
+from fusioncut.engines.analytic.cells import relevant_sweeps
+from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
@@ -66,7 +68,9 @@ from fusioncut.model.tools import MillingTool
 WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts as cut (zero-thickness walls)
 VOLUME_EPS = 1e-12  # mm³: a CL removing less is idle (air, or a rapid through air)
 TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
-ORDER_GRID = 24  # points a side of the grid that orders a tile's sweeps (volume.bounding_sweeps)
+CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps is quartered (.cells)
+MIN_CELL_RADII = 0.125  # down to this many tool radii wide
+END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 N_TOUCH = 360  # angles per height scanned for the contact's height range
 Z_TOL = 1e-10  # mm: the contact's height range
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
@@ -241,13 +245,17 @@ class AnalyticEngine:
         if removed <= VOLUME_EPS:
             outcome = CutOutcome(idle, method=SweepMethod.EXACT, timings=timings)
         else:
-            # the slices are on the tool at the CL's end: only sweeps whose boxes reach it matter
+            # the slices are on the tool at the CL's end: a point there meets only the sweeps that can
+            # shape the material in its cell of a grid over the tool's square (contact.sweep_grid)
             ex, ey, reach = row[4], row[5], profile.radius + 2 * WALL_EPS
             at_end = ((CB[:, 0] <= ex + reach) & (CB[:, 2] >= ex - reach) & (CB[:, 1] <= ey + reach)
                       & (CB[:, 3] >= ey - reach))
             Ce, CBe = C[at_end], CB[at_end]
-            args = (row, profile.pieces, profile.radius, Ce, CBe, PP, NPC, RR, stock, WALL_EPS)
-            levels = [self.stock[5]] + list(Ce[:, 3]) + list(Ce[:, 6])
+            grid = sweep_grid(ex - reach, ey - reach, 2 * reach, END_GRID, row, profile.pieces, profile.radius, Ce, PP,
+                              NPC, RR, self.stock[2], self.stock[5], 2 * WALL_EPS)
+            args = (row, profile.pieces, profile.radius, Ce, CBe, PP, NPC, RR, stock, WALL_EPS, *grid)
+            shaping = Ce[np.unique(grid[2])]  # the sweeps that can shape the material at the end
+            levels = sorted({self.stock[5], *shaping[:, 3], *shaping[:, 6]})
             dz = self.options.slice_height
             z_range = contact_range(args, 0.0, tool.flute_length, dz, levels)
             heights = slice_heights(z_range, tool, dz)
@@ -289,8 +297,8 @@ class AnalyticEngine:
     def _removed(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
                  box: tuple[float, float, float, float], edges: np.ndarray) -> tuple[float, tuple[float, ...]]:
         """The CL's removed volume (mm³) and its parts within the bands between ``edges`` (machine z,
-        mm; :func:`.volume.removed_volume`), integrated tile by tile (:func:`tiles`): each tile meets
-        only the earlier sweeps whose boxes overlap it and gets its share of the error budget."""
+        mm; :func:`.volume.removed_volume`), integrated cell by cell (module docstring), each cell
+        with the sweeps that can shape the removed height in it and its share of the error budget."""
         s = self.stock
         bands = np.zeros(max(len(edges) - 1, 0))
         x0, x1 = max(box[0], s[0]), min(box[2], s[3])
@@ -298,23 +306,31 @@ class AnalyticEngine:
         if x0 >= x1 or y0 >= y1 or min(row[3], row[6]) >= s[5]:
             return 0.0, tuple(bands)  # beside the stock, or above it: the lower surface is nowhere below the lowest tip
         tables = self._tools
+        P, NP, RR = tables.profiles, tables.counts, tables.radii
         total = 0.0
-        for tx0, ty0, tx1, ty1 in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius):
-            keep = (CB[:, 0] <= tx1) & (CB[:, 2] >= tx0) & (CB[:, 1] <= ty1) & (CB[:, 3] >= ty0)
-            Ct, CBt = C[keep], CB[keep]
-            bounding = bounding_sweeps(tx0, ty0, tx1, ty1, ORDER_GRID, row, profile.pieces, profile.radius, Ct, CBt,
-                                       tables.profiles, tables.counts, tables.radii, s[2], s[5])
-            # the bounding sweeps first: the least lower surface is then met early, and the others'
+        cells = tiles(x0, y0, x1, y1, TILE_RADII * profile.radius)
+        while cells:
+            cx0, cy0, cx1, cy1 = cells.pop()
+            meet = (CB[:, 0] <= cx1) & (CB[:, 2] >= cx0) & (CB[:, 1] <= cy1) & (CB[:, 3] >= cy0)
+            Ct = C[meet]
+            empty, keep, floors = relevant_sweeps(cx0, cy0, cx1, cy1, row, profile.pieces, profile.radius, Ct,
+                                                  P, NP, RR, s[2], s[5], 0.0)
+            if empty:
+                continue
+            if keep.sum() > CELL_SWEEPS and cx1 - cx0 > MIN_CELL_RADII * profile.radius:
+                mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
+                cells += [(cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1), (mx, my, cx1, cy1)]
+                continue
+            # the lowest floors first: the least lower surface is then met early, and the others'
             # closed-form floors skip them (volume.height_and_cause)
-            order = np.argsort(~bounding, kind="stable")
-            Ct, CBt = Ct[order], CBt[order]
+            order = np.flatnonzero(keep)[np.argsort(floors[keep], kind="stable")]
+            Ct, CBt = Ct[order], CB[meet][order]
             rows = np.vstack([row[None, :], Ct])
-            radii = [_break_radii(r, tables.profiles[int(r[12]), :tables.counts[int(r[12])]], (s[2], s[5]))
-                     for r in rows]
+            radii = [_break_radii(r, P[int(r[12]), :NP[int(r[12])]], (s[2], s[5])) for r in rows]
             circles, segments = boundary_curves(rows, radii)
-            xs = x_breaks(circles, segments, tx0, tx1)
-            v, vb = removed_volume(xs, ty0, ty1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
-                                   tables.profiles, tables.counts, tables.radii, s[2], s[5], self.volume_tol, edges)
+            xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1)
+            v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
+                                   P, NP, RR, s[2], s[5], self.volume_tol, edges)
             total += v
             bands += vb
         return float(total), tuple(float(v) for v in bands)
@@ -393,15 +409,22 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
     of ``levels`` (the stock's top, the earlier sweeps' ends), within the range and the stock's
     height. The lowest touching candidate is found walking up from the bottom, the highest walking
     down from the top (the heights between them are not tested); the change from its untouched
-    neighbour is bisected to :data:`Z_TOL`."""
+    neighbour is found to :data:`Z_TOL` by the Illinois variant of regula falsi on the slice's
+    material margin (:func:`.contact.slice_margin`, positive where it touches), every fourth step
+    a halving so that the bracket shrinks however the margin bends."""
     row, pieces, stock = args[0], args[1], args[8]
     ez = row[6]
+    seen: dict[float, float] = {}
+
+    def margin(zs: float) -> float:
+        if zs not in seen:
+            r = profile_radius(pieces, zs)
+            seen[zs] = -math.inf if r <= 0 else float(
+                slice_margin(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:], N_TOUCH))
+        return seen[zs]
 
     def touches(zs: float) -> bool:
-        r = profile_radius(pieces, zs)
-        if r <= 0:
-            return False
-        return bool(slice_touches(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:], N_TOUCH))
+        return margin(zs) > 0.0
 
     end = min(top, stock[5] - ez + 1e-7)  # no material above the stock's top
     if end <= bottom:
@@ -419,21 +442,32 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
         return None
     last = next(i for i in range(len(grid) - 1, first - 1, -1) if i == first or touches(grid[i]))
 
-    def edge(a: float, b: float, on_a: bool) -> float:
-        while b - a > Z_TOL:
-            m = 0.5 * (a + b)
-            if touches(m) == on_a:
-                a = m
+    def edge(a: float, b: float) -> float:
+        fa, fb = margin(a), margin(b)
+        kept = 0  # +1: the last step moved b, -1: it moved a
+        for k in range(200):
+            if b - a <= Z_TOL:
+                break
+            x = 0.5 * (a + b)
+            if k % 4 != 3 and math.isfinite(fa) and math.isfinite(fb) and fa != fb:
+                x = min(max(a - fa * (b - a) / (fb - fa), a + 0.25 * Z_TOL), b - 0.25 * Z_TOL)
+            fx = margin(x)
+            if (fx > 0.0) == (fa > 0.0):
+                a, fa = x, fx
+                fb = 0.5 * fb if kept < 0 else fb  # Illinois: an end kept twice has its value halved
+                kept = -1
             else:
-                b = m
+                b, fb = x, fx
+                fa = 0.5 * fa if kept > 0 else fa
+                kept = 1
         return 0.5 * (a + b)
 
     if first == 0 and grid[0] <= bottom + 1e-9:
         lo = bottom  # touching from the range's bottom
     else:
-        lo = edge(grid[first - 1] if first else bottom, grid[first], False)
+        lo = edge(grid[first - 1] if first else bottom, grid[first])
     if last == len(grid) - 1 and end >= top:
         hi = top  # touching up to the range's top
     else:
-        hi = edge(grid[last], grid[last + 1] if last + 1 < len(grid) else end + 1e-7, True)
+        hi = edge(grid[last], grid[last + 1] if last + 1 < len(grid) else end + 1e-7)
     return (lo, hi)

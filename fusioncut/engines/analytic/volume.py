@@ -11,7 +11,8 @@ profile changes piece (a bull-nose's flat meets its corner): there the integrand
 smooth parts by **break points** found in closed form, the crossings of the line ``x = const`` with
 the footprints' boundary curves (circles about the path's ends and, for an arc, about its centre;
 segments parallel to a line's path, an arc's end radii). The inner integral over ``y`` between
-break points and the outer one over ``x`` (break points: the curves' extreme x) are adaptive
+break points and the outer one over ``x`` (break points: the curves' extreme x and where two curves
+meet, :func:`curve_meetings_x`) are adaptive
 Gauss-Kronrod (7, 15) with a **global** error budget, as QUADPACK's QAG: the part with the largest
 error estimate (QUADPACK's, from the two rules) is halved until the estimates add up to the budget
 (or parts reach :data:`MIN_PART` mm). A budget per part's length would refine a crescent's tip, where
@@ -182,37 +183,6 @@ def _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 def removed_height(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
     """max(0, min(h, z_top) - max(L, z_bottom)) at (px, py), mm."""
     return height_and_cause(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top)[0]
-
-
-@njit(cache=True)
-def bounding_sweeps(x0, y0, x1, y1, n, S, P, R, C, CB, PP, NPC, RR, zb, zt):
-    """Which of the earlier sweeps ``C`` bound the removed region over the rectangle, as seen on an
-    ``n`` x ``n`` grid of points: those giving ``h`` at a point where material is removed or at one
-    of its neighbours (where the region ends). Searched first, they let the closed-form floors skip
-    the others (:func:`height_and_cause`). A grid misses a sweep that bounds the region only in a
-    sliver between its points, so this chooses an order, never which sweeps count (nor which give
-    break points: a footprint's edge left inside a part can fool the error estimate)."""
-    val = np.empty((n, n))
-    arg = np.empty((n, n), dtype=np.int64)
-    for i in range(n):
-        x = x0 + (x1 - x0) * (i + 0.5) / n
-        for j in range(n):
-            y = y0 + (y1 - y0) * (j + 0.5) / n
-            val[i, j], arg[i, j], _ = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-    mask = np.zeros(C.shape[0], dtype=np.bool_)
-    for i in range(n):
-        for j in range(n):
-            if arg[i, j] < 0 or mask[arg[i, j]]:
-                continue
-            near = val[i, j] > 0.0
-            for di in range(-1, 2):
-                for dj in range(-1, 2):
-                    a, b = i + di, j + dj
-                    if 0 <= a < n and 0 <= b < n and val[a, b] > 0.0:
-                        near = True
-            if near:
-                mask[arg[i, j]] = True
-    return mask
 
 
 @njit(cache=True)
@@ -482,10 +452,76 @@ def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tupl
     return (np.array(circles, dtype=np.float64).reshape(-1, 3), np.array(segments, dtype=np.float64).reshape(-1, 4))
 
 
-def x_breaks(circles: np.ndarray, segments: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Sorted x break points in [lo, hi]: the circles' centres and extreme x, the segments' ends."""
+@njit(cache=True)
+def _meets(x, y, x0, y0, x1, y1, out):
+    """Appends x to ``out`` where (x, y) lies in the rectangle."""
+    if x0 <= x <= x1 and y0 <= y <= y1:
+        out.append(x)
+
+
+@njit(cache=True)
+def curve_meetings_x(circles, segments, x0, y0, x1, y1):
+    """The x (mm) of every point in the rectangle where two of the boundary curves meet (circle and
+    circle, circle and segment, segment and segment). Between them and the curves' extreme x, the
+    order of the curves' crossings along a line x = const stays the same, so a region between two
+    curves (a sliver a flat end mill leaves beside earlier passes) is a stretch of every line through
+    it and a part of the outer integral ends where it begins and ends: no sample has to hit it."""
+    out = [x0]
+    nc, ns = circles.shape[0], segments.shape[0]
+    for i in range(nc):
+        ax, ay, ar = circles[i, 0], circles[i, 1], circles[i, 2]
+        for j in range(i + 1, nc):
+            bx, by, br = circles[j, 0], circles[j, 1], circles[j, 2]
+            dx, dy = bx - ax, by - ay
+            d2 = dx * dx + dy * dy
+            if d2 <= 0.0:
+                continue
+            d = math.sqrt(d2)
+            if d > ar + br or d < abs(ar - br):
+                continue
+            a = (ar * ar - br * br + d2) / (2.0 * d)
+            h = math.sqrt(max(ar * ar - a * a, 0.0))
+            mx, my = ax + a * dx / d, ay + a * dy / d
+            _meets(mx - h * dy / d, my + h * dx / d, x0, y0, x1, y1, out)
+            _meets(mx + h * dy / d, my - h * dx / d, x0, y0, x1, y1, out)
+        for j in range(ns):
+            px, py = segments[j, 0], segments[j, 1]
+            ux, uy = segments[j, 2] - px, segments[j, 3] - py
+            uu = ux * ux + uy * uy
+            if uu <= 0.0:
+                continue
+            fx, fy = px - ax, py - ay
+            b = fx * ux + fy * uy
+            c = fx * fx + fy * fy - ar * ar
+            disc = b * b - uu * c
+            if disc < 0.0:
+                continue
+            w = math.sqrt(disc)
+            for t in ((-b - w) / uu, (-b + w) / uu):
+                if 0.0 <= t <= 1.0:
+                    _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, out)
+    for i in range(ns):
+        px, py = segments[i, 0], segments[i, 1]
+        ux, uy = segments[i, 2] - px, segments[i, 3] - py
+        for j in range(i + 1, ns):
+            qx, qy = segments[j, 0], segments[j, 1]
+            vx, vy = segments[j, 2] - qx, segments[j, 3] - qy
+            den = ux * vy - uy * vx
+            if den == 0.0:
+                continue
+            t = ((qx - px) * vy - (qy - py) * vx) / den
+            u = ((qx - px) * uy - (qy - py) * ux) / den
+            if 0.0 <= t <= 1.0 and 0.0 <= u <= 1.0:
+                _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, out)
+    return np.array(out)
+
+
+def x_breaks(circles: np.ndarray, segments: np.ndarray, lo: float, hi: float, ylo: float, yhi: float) -> np.ndarray:
+    """Sorted x break points in [lo, hi]: the circles' centres and extreme x, the segments' ends, and
+    where two curves meet within the rectangle [lo, hi] x [ylo, yhi] (:func:`curve_meetings_x`)."""
     xs = [lo, hi]
     xs += list(circles[:, 0] - circles[:, 2]) + list(circles[:, 0] + circles[:, 2])
     xs += list(circles[:, 0]) + list(segments[:, 0]) + list(segments[:, 2])
+    xs += list(curve_meetings_x(circles, segments, lo, ylo, hi, yhi))
     out = np.unique(np.clip(np.array(xs, dtype=np.float64), lo, hi))
     return out

@@ -1,0 +1,129 @@
+"""Which earlier sweeps can shape a CL's removed height over a cell of its footprint.
+
+Machine frame, mm. A cell is an axis-aligned rectangle (x0, y0, x1, y1). Over a cell the removed
+height ``max(0, min(h, top) - max(L, bottom))`` (:mod:`.volume`) depends only on the earlier sweeps
+that can be the least lower surface ``h`` somewhere in it. Two closed-form bounds decide that:
+
+* a sweep's **floor** over the cell: its path's lowest tip plus ``f`` at the least XY distance
+  between the cell and its path (for an arc, between the cell and the arc's whole circle), a lower
+  bound of its lower surface there (``f`` grows outward); inf where the cell is beyond its
+  footprint;
+* a line sweep's **ceiling** over a cell inside its footprint (every corner within ``R`` of its
+  path: the footprint is convex): the most of its lower surface at the corners. Its lower surface
+  is convex in (x, y) (see :func:`.volume._nothing_removed`), so that is its maximum over the cell.
+
+With ``U`` the least of the stock's top and the ceilings, ``h`` (capped by the top) is at most ``U``
+all over the cell: a sweep whose floor is at least ``U`` never lowers it and is left out (the sweep
+that gives ``U`` is kept). Where the CL's own floor over the cell reaches ``U``, nothing is removed
+in it. A cell still met by many sweeps is quartered (:func:`relevant_sweeps` says which are left).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fusioncut.engines.analytic.profile import profile_height
+from fusioncut.engines.analytic.sweeps import point_segment_distance, sweep_lower
+
+
+@njit(cache=True)
+def _point_distance(x0, y0, x1, y1, px, py):
+    """XY distance (mm) from (px, py) to the rectangle (0 inside it)."""
+    dx = max(x0 - px, 0.0, px - x1)
+    dy = max(y0 - py, 0.0, py - y1)
+    return math.sqrt(dx * dx + dy * dy)
+
+
+@njit(cache=True)
+def _segment_meets(x0, y0, x1, y1, ax, ay, bx, by):
+    """Whether the segment from (ax, ay) to (bx, by) meets the rectangle (Liang-Barsky clipping)."""
+    t0, t1 = 0.0, 1.0
+    dx, dy = bx - ax, by - ay
+    for p, q in ((-dx, ax - x0), (dx, x1 - ax), (-dy, ay - y0), (dy, y1 - ay)):
+        if p == 0.0:
+            if q < 0.0:
+                return False
+            continue
+        r = q / p
+        if p < 0.0:
+            t0 = max(t0, r)
+        else:
+            t1 = min(t1, r)
+        if t0 > t1:
+            return False
+    return True
+
+
+@njit(cache=True)
+def path_distance(S, x0, y0, x1, y1):
+    """A lower bound (mm) of the XY distance between the rectangle and the sweep's path: exact for
+    a line (0 where they meet, else the least of its ends' distances to the rectangle and the
+    corners' to it), for an arc the distance to its whole circle."""
+    if S[0] == 0.0:
+        ax, ay, bx, by = S[1], S[2], S[4], S[5]
+        if _segment_meets(x0, y0, x1, y1, ax, ay, bx, by):
+            return 0.0
+        d = min(_point_distance(x0, y0, x1, y1, ax, ay), _point_distance(x0, y0, x1, y1, bx, by))
+        for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
+            d = min(d, point_segment_distance(cx, cy, ax, ay, bx, by))
+        return d
+    cx, cy, rho = S[7], S[8], S[9]
+    near = _point_distance(x0, y0, x1, y1, cx, cy)
+    far = 0.0
+    for qx, qy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
+        far = max(far, math.sqrt((qx - cx) ** 2 + (qy - cy) ** 2))
+    if rho < near:
+        return near - rho
+    if rho > far:
+        return rho - far
+    return 0.0
+
+
+@njit(cache=True)
+def cell_floor(S, P, R, x0, y0, x1, y1, eps):
+    """A lower bound (mm) of the sweep's lower surface over the rectangle; inf beyond its footprint
+    widened by ``eps``."""
+    d = path_distance(S, x0, y0, x1, y1)
+    if d > R + eps:
+        return math.inf
+    return min(S[3], S[6]) + profile_height(P, min(d, R))
+
+
+@njit(cache=True)
+def cell_ceiling(S, P, R, x0, y0, x1, y1):
+    """The maximum (mm) of a line sweep's lower surface over a rectangle inside its footprint; inf
+    for an arc or where a corner is beyond the footprint."""
+    if S[0] != 0.0:
+        return math.inf
+    top = -math.inf
+    for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
+        if point_segment_distance(cx, cy, S[1], S[2], S[4], S[5]) > R:
+            return math.inf
+        top = max(top, sweep_lower(S, P, R, cx, cy, 0.0))
+    return top
+
+
+@njit(cache=True)
+def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps):
+    """(whether the CL ``S`` can remove nothing in the rectangle, the mask of the rows of ``C`` that
+    can give ``h`` in it, their floors (mm)), as the module docstring says; footprints widened by
+    ``eps`` (mm) for the floors, as :func:`.contact.material_at` widens them."""
+    n = C.shape[0]
+    keep = np.zeros(n, dtype=np.bool_)
+    floors = np.full(n, math.inf)
+    cap = zt
+    capper = -1
+    for j in range(n):
+        k = int(C[j, 12])
+        floors[j] = cell_floor(C[j], PP[k, :NPC[k]], RR[k], x0, y0, x1, y1, eps)
+        if floors[j] < cap:
+            c = cell_ceiling(C[j], PP[k, :NPC[k]], RR[k], x0, y0, x1, y1)
+            if c < cap:
+                cap = c
+                capper = j
+    for j in range(n):
+        keep[j] = floors[j] < cap or j == capper
+    own = max(zb, cell_floor(S, P, R, x0, y0, x1, y1, 0.0))
+    return own >= cap, keep, floors
