@@ -127,3 +127,45 @@ def _impulse_map(phi: np.ndarray, kappa: float) -> np.ndarray:
     out[:2] = phi @ kick
     out[2, 0] = 1.0
     return out
+
+
+def test_zoa_reproduces_the_two_mode_shaping_example_solution() -> None:
+    """The two-mode example of orthogonal cutting (shaping) in the style of Altintas's *Manufacturing
+    Automation* (ch. 3), with its data as transcribed in github.com/leekunhwee/Dynamics
+    (Cutting/Stability/FrequencyDomain/Turning/Two DOF Example/README.md): modes 250 and 150 Hz, damping
+    1.2 and 1.0 %, stiffness 2.26e8 and 2.13e8 N/m, oriented 30 and -45 deg from the force, Kf = 1000
+    MPa. Its printed results were not found, so the comparison is with the example's solution procedure,
+    computed here on a fine frequency grid: the oriented receptance G + iH = sum cos² theta_j Phi_j,
+    a_lim = -1 / (2 Kf G) where G < 0, eps = 2 pi - 2 atan(G / H) (H < 0), n = 60 f_c / (k + eps / 2 pi).
+    ZOA takes it as one cutting edge (N = 1, Ktc = Kf) on the two modes along x with stiffness k_j /
+    cos² theta_j and the directional factor alpha_xx = -4 pi (so that 2 pi / (N Ktc alpha_xx) = -1 /
+    (2 Kf)); its lobes' minimum equals the example's -1 / (2 Kf min G) and its limit at six speeds equals
+    the example's lobes (the smallest a_lim whose n_k passes through the speed) within 2e-4."""
+    from fusioncut.analysis.stability import chatter_grid, zoa_a_lim, zoa_lobes
+
+    kf = 1000.0  # N/mm²
+    modes = ((250.0, 0.012, 2.26e8, 30.0), (150.0, 0.010, 2.13e8, -45.0))
+    dyn = ToolDynamics(tuple(Mode(f, z, k / math.cos(math.radians(t)) ** 2) for f, z, k, t in modes), ())
+    alpha = np.array([[-4 * math.pi, 0.0], [0.0, 0.0]])
+    # the example's solution: oriented receptance on a fine grid, both lobes' branches
+    f = np.linspace(100.0, 400.0, 600_001)
+    phi = sum(math.cos(math.radians(t)) ** 2 / (k * (1 - (f / fn) ** 2 + 2j * z * f / fn)) for fn, z, k, t in modes)
+    g, h = phi.real, phi.imag
+    ok = (g < 0) & (h < 0)
+    a_ex = np.where(ok, -1.0 / (2 * kf * 1e6 * np.where(ok, g, -1.0)) * 1e3, np.nan)  # mm
+    eps = 2 * math.pi - 2 * np.arctan(g / h)
+    grid = chatter_grid(dyn)
+    _, lobes = zoa_lobes(alpha, grid, kf, 1, 300.0, 3000.0, 2000)
+    a_min = float(np.nanmin(a_ex))
+    assert lobes.min() == pytest.approx(a_min, rel=2e-3) and lobes.min() >= a_min * (1 - 1e-9)
+    for rpm in (400.0, 700.0, 1100.0, 1600.0, 2200.0, 2900.0):
+        best = math.inf
+        for k in range(0, 60):
+            n = 60.0 * f / (k + eps / (2 * math.pi))
+            # neighbouring grid points with a depth on either side of the speed
+            cross = np.flatnonzero((np.diff(np.sign(n - rpm)) != 0) & ok[:-1] & ok[1:])
+            if len(cross):
+                w = (rpm - n[cross]) / (n[cross + 1] - n[cross])
+                best = min(best, float((a_ex[cross] + w * (a_ex[cross + 1] - a_ex[cross])).min()))
+        assert math.isfinite(best)
+        assert zoa_a_lim(alpha, grid, kf, 1, rpm)[0] == pytest.approx(best, rel=2e-4), rpm
