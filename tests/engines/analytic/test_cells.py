@@ -1,0 +1,110 @@
+"""The cells' bounds hold at every point, and leaving out the sweeps they rule out changes nothing."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import fusioncut.engines.analytic.contact as contact
+import fusioncut.engines.analytic.engine as analytic
+from fusioncut.engines.analytic.cells import cell_ceiling, cell_floor
+from fusioncut.engines.analytic.profile import lower_profile
+from fusioncut.engines.analytic.sweeps import arc_row, line_row, sweep_lower
+from fusioncut.engines.base import EngineOptions
+from fusioncut.model.tools import BallEndMill, BullNoseEndMill, ChamferMill, FlatEndMill, TaperedEndMill
+
+TOOLS = {
+    "flat": FlatEndMill(10, 20),
+    "ball": BallEndMill(6, 20),
+    "bullnose": BullNoseEndMill(10, 20, corner_radius=2),
+    "tapered": TaperedEndMill(4, 20, taper_angle=10),
+    "chamfer": ChamferMill(10, 20, taper_angle=45),
+}
+coord = st.floats(-8, 8, allow_nan=False)
+
+
+def _points(rect, n=9):
+    x0, y0, x1, y1 = rect
+    return [(x, y) for x in np.linspace(x0, x1, n) for y in np.linspace(y0, y1, n)]
+
+
+def _check(row, lp, rect):
+    floor = cell_floor(row, lp.pieces, lp.radius, *rect, 0.0)
+    ceiling = cell_ceiling(row, lp.pieces, lp.radius, *rect)
+    values = [sweep_lower(row, lp.pieces, lp.radius, x, y, 0.0) for x, y in _points(rect)]
+    finite = [v for v in values if math.isfinite(v)]
+    if finite:
+        assert floor <= min(finite) + 1e-12
+    if math.isfinite(ceiling):
+        assert all(math.isfinite(v) for v in values)  # the whole rectangle lies in the footprint
+        assert max(values) <= ceiling + 1e-12
+        assert max(values) >= ceiling - 1e-12  # attained at a corner
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kind=st.sampled_from(sorted(TOOLS)), a=st.tuples(coord, coord, coord), b=st.tuples(coord, coord, coord),
+       c=st.tuples(coord, coord), size=st.tuples(st.floats(0.01, 6), st.floats(0.01, 6)))
+def test_line_sweep_floor_and_ceiling_bound_it_over_a_cell(kind, a, b, c, size):
+    _check(line_row(a, b, 0), lower_profile(TOOLS[kind]), (c[0], c[1], c[0] + size[0], c[1] + size[1]))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kind=st.sampled_from(sorted(TOOLS)), c=st.tuples(coord, coord), rho=st.floats(0.2, 8),
+       a0=st.floats(-4, 4), sw=st.floats(-13, 13).filter(lambda v: abs(v) > 1e-3), z=st.tuples(coord, coord),
+       q=st.tuples(coord, coord), size=st.tuples(st.floats(0.01, 6), st.floats(0.01, 6)))
+def test_arc_sweep_floor_bounds_it_over_a_cell(kind, c, rho, a0, sw, z, q, size):
+    start = (c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z[0])
+    end = (c[0] + rho * math.cos(a0 + sw), c[1] + rho * math.sin(a0 + sw), z[1])
+    row = arc_row(start, end, c, rho, a0, sw, 0)
+    rect = (q[0], q[1], q[0] + size[0], q[1] + size[1])
+    _check(row, lower_profile(TOOLS[kind]), rect)
+    assert math.isinf(cell_ceiling(row, lower_profile(TOOLS[kind]).pieces, 3.0, *rect))  # arcs: no ceiling
+
+
+def test_culling_leaves_the_cls_as_they_were_on_a_real_program(monkeypatch):
+    """fusion-posted/1117_wall_28bit.nc CLs 1512-1515: CLs that cross hundreds of earlier passes of a
+    flat end mill, one with a sliver of 1.5e-6 mm³ between two earlier passes. Computed with the cells'
+    culling and quartering, and with every sweep that meets the footprint in one piece: the same
+    volumes (to the integral's tolerance), contact ranges, areas and slices."""
+    from itertools import islice
+
+    from shared_data import DATA
+
+    from fusioncut.io.readers import read_toolpath
+    from fusioncut.io.stock import infer_stock
+
+    path = DATA / "fusion-posted" / "1117_wall_28bit.nc"
+    if not path.is_file():
+        pytest.skip("shared data missing")
+    toolpath = read_toolpath(path)
+    stock = infer_stock(toolpath)
+
+    def maps():
+        eng = analytic.AnalyticEngine(EngineOptions(slice_height=1.0))
+        eng.start(stock)
+        return list(islice(eng.process(toolpath, start_at=1512), 4))
+
+    culled = maps()
+    every = analytic.relevant_sweeps
+
+    def keep_all(*args):
+        empty, keep, floors = every(*args)
+        return False, np.ones_like(keep), floors
+
+    monkeypatch.setattr(analytic, "relevant_sweeps", keep_all)
+    monkeypatch.setattr(contact, "relevant_sweeps", keep_all)
+    monkeypatch.setattr(analytic, "CELL_SWEEPS", 10**9)
+    whole = maps()
+    assert sum(m.removed_volume > 0 for m in culled) >= 3
+    for a, b in zip(culled, whole):
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=1e-8, abs=1e-10), a.cl_index
+        assert a.ap == pytest.approx(b.ap, abs=1e-9)
+        assert a.contact_area == pytest.approx(b.contact_area, rel=1e-7, abs=1e-9)
+        assert len(a.slices) == len(b.slices)
+        for s, t in zip(a.slices, b.slices):
+            assert len(s.intervals) == len(t.intervals)
+            for i, j in zip(s.intervals, t.intervals):
+                assert (i.entry, i.exit) == pytest.approx((j.entry, j.exit), abs=1e-6)
