@@ -1,4 +1,5 @@
-"""Semi-discretization against a published closed form: the stability boundaries of highly interrupted
+"""Stability against published models and examples: ZOA on the data of a two-mode example (last test) and
+semi-discretization against a published closed form, the stability boundaries of highly interrupted
 milling in the impulsive limit (Davies, Pratt, Dutterer & Burns, "Stability prediction for low radial
 immersion milling", J. Manuf. Sci. Eng. 124 (2002) 217-225: the tooth is in the cut for a vanishing
 fraction of the tooth period, so the regenerative force is an impulse once per period and the motion a
