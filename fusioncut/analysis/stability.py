@@ -577,8 +577,9 @@ def sd_a_lim(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: Sequence[f
     10]`` (``grid_points``) that is unstable, refined against the stable grid point below it to a bracket
     ``hi / lo < 1 + rel_tol`` (the result its geometric mean) by regula falsi on ``log rho`` against ``log
     a`` (``rho`` the spectral radius; a point within a quarter of the tolerance of either end is moved
-    inside, so the bracket shrinks every step; after two points on one side of the root the next is put
-    half a tolerance beyond the estimate, after three the end kept is halved as in the Illinois variant).
+    inside, so the bracket shrinks every step): the estimate is the secant through the last two points,
+    regula falsi on the bracket where that leaves it (an end kept twice in a row halved, the Illinois
+    variant), moved half a tolerance past an end it is within half a tolerance of (closing the bracket).
     ``a_ref`` is a scale per speed (the ZOA limit; where that is not finite the CL's ``ap``). ``inf`` when
     the whole grid is stable; the smallest grid depth when that is already unstable. The grid up to its
     first point above ``a_ref`` is probed as :func:`_sd_a_lim_fixed` says, then evaluated one point at a
@@ -666,29 +667,33 @@ def _sd_a_lim_fixed(cd: CLDirectional, system: ModalSystem, ktc: float, rpm: np.
     j = first[todo]
     xl, xh = np.log(ref[todo] * ratios[j - 1]), np.log(ref[todo] * ratios[j])
     gl, gh = g[todo, j - 1], g[todo, j]
+    xa, ga, xb, gb = xl.copy(), gl.copy(), xh.copy(), gh.copy()  # the last two points, b the latest
     side = np.zeros(len(todo))  # +1: the last point replaced the unstable end, -1: the stable one
-    same = np.zeros(len(todo))  # how many points in a row replaced that end
     tol = math.log1p(rel_tol)
     for _ in range(60):
         live = np.flatnonzero(xh - xl >= tol)
         if not len(live):
             break
-        lo, hi, fl, fh, sd, sm = xl[live], xh[live], gl[live], gh[live], side[live], same[live]
-        x = hi - fh * (hi - lo) / (fh - fl)
-        # after two points on one side the estimate is close: half a tolerance past it towards the other end
-        # closes the bracket (and a third point on one side gets the Illinois halving instead)
-        x = np.where(sm == 2, x - sd * 0.5 * tol, x)
+        lo, hi, fl, fh, sd = xl[live], xh[live], gl[live], gh[live], side[live]
+        # the secant through the last two points (smooth log rho: superlinear), regula falsi on the bracket
+        # where the secant leaves it (with the Illinois halving of an end kept twice in a row)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sec = xb[live] - gb[live] * (xb[live] - xa[live]) / (gb[live] - ga[live])
+        rf = hi - fh * (hi - lo) / (fh - fl)
+        x = np.where(np.isfinite(sec) & (sec > lo) & (sec < hi), sec, rf)
+        # an estimate within half a tolerance of an end: half a tolerance past it closes the bracket
+        x = np.where(x - lo < 0.5 * tol, x + 0.5 * tol, np.where(hi - x < 0.5 * tol, x - 0.5 * tol, x))
         x = np.clip(x, lo + 0.25 * tol, hi - 0.25 * tol)
         gx = log_rho(todo[live], np.exp(x))
         up = gx >= 0
-        # Illinois: an end kept three times in a row has its value halved, pulling the next point towards it
-        gl[live] = np.where(up & (sd > 0) & (sm >= 2), 0.5 * fl, np.where(up, fl, gx))
-        gh[live] = np.where(~up & (sd < 0) & (sm >= 2), 0.5 * fh, np.where(up, gx, fh))
+        keep_lo, keep_hi = up & (sd > 0), ~up & (sd < 0)
+        gl[live] = np.where(up, np.where(keep_lo, 0.5 * fl, fl), gx)
+        gh[live] = np.where(up, gx, np.where(keep_hi, 0.5 * fh, fh))
         xh[live] = np.where(up, x, hi)
         xl[live] = np.where(up, lo, x)
-        now = np.where(up, 1.0, -1.0)
-        same[live] = np.where(now == sd, sm + 1, 1.0)
-        side[live] = now
+        side[live] = np.where(up, 1.0, -1.0)
+        xa[live], ga[live] = xb[live], gb[live]
+        xb[live], gb[live] = x, gx
     out[todo] = np.exp(0.5 * (xl + xh))
     return out
 
