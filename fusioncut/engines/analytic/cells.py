@@ -15,7 +15,11 @@ that can be the least lower surface ``h`` somewhere in it. Two closed-form bound
 With ``U`` the least of the stock's top and the ceilings, ``h`` (capped by the top) is at most ``U``
 all over the cell: a sweep whose floor is at least ``U`` never lowers it and is left out (the sweep
 that gives ``U`` is kept). Where the CL's own floor over the cell reaches ``U``, nothing is removed
-in it. A cell still met by many sweeps is quartered (:func:`relevant_sweeps` says which are left).
+in it. Among many sweeps left, one is also left out where a single other one lies under it wherever
+it reaches: its footprint holds the first's whole footprint and its **top** (the highest its lower
+surface gets: its path's highest tip plus ``f(R)``) is at most the first's floor (a helix retraced
+deeper, a pass repeated lower). A cell still met by many sweeps is quartered
+(:func:`relevant_sweeps` says which are left).
 """
 from __future__ import annotations
 
@@ -106,10 +110,51 @@ def cell_ceiling(S, P, R, x0, y0, x1, y1):
 
 
 @njit(cache=True)
-def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps):
+def _holds(A, RA, B, RB):
+    """Whether line sweep ``A``'s footprint (radius ``RA``) holds line sweep ``B``'s (``RB``): both
+    ends of B's path within ``RA - RB`` of A's (the distance to A's path is convex along B's)."""
+    if A[0] != 0.0 or B[0] != 0.0 or RB > RA:
+        return False
+    room = RA - RB
+    return (point_segment_distance(B[1], B[2], A[1], A[2], A[4], A[5]) <= room
+            and point_segment_distance(B[4], B[5], A[1], A[2], A[4], A[5]) <= room)
+
+
+@njit(cache=True)
+def _undominated(C, PP, NPC, RR, keep, floors):
+    """``keep`` less the sweeps another kept line sweep lies under wherever they reach (module
+    docstring); of two equal ones the later is left out."""
+    n = C.shape[0]
+    top = np.empty(n)
+    for j in range(n):
+        k = int(C[j, 12])
+        top[j] = max(C[j, 3], C[j, 6]) + profile_height(PP[k, :NPC[k]], RR[k])
+    out = keep.copy()
+    by_top = np.argsort(top)
+    for j in range(n):
+        if not keep[j] or C[j, 0] != 0.0:
+            continue
+        kj = int(C[j, 12])
+        for i in by_top:
+            if top[i] > floors[j]:
+                break  # the rest are higher still
+            if i == j or not out[i]:
+                continue
+            if top[i] == floors[j] and top[j] == top[i] and i > j:
+                continue  # equal ones: the earlier is the one kept
+            ki = int(C[i, 12])
+            if _holds(C[i], RR[ki], C[j], RR[kj]):
+                out[j] = False
+                break
+    return out
+
+
+@njit(cache=True)
+def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps, many):
     """(whether the CL ``S`` can remove nothing in the rectangle, the mask of the rows of ``C`` that
     can give ``h`` in it, their floors (mm)), as the module docstring says; footprints widened by
-    ``eps`` (mm) for the floors, as :func:`.contact.material_at` widens them."""
+    ``eps`` (mm) for the floors, as :func:`.contact.material_at` widens them. Where more than
+    ``many`` are left, the dominated ones are left out too (O(n²))."""
     n = C.shape[0]
     keep = np.zeros(n, dtype=np.bool_)
     floors = np.full(n, math.inf)
@@ -123,7 +168,11 @@ def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps):
             if c < cap:
                 cap = c
                 capper = j
+    count = 0
     for j in range(n):
         keep[j] = floors[j] < cap or j == capper
+        count += keep[j]
+    if count > many:
+        keep = _undominated(C, PP, NPC, RR, keep, floors)
     own = max(zb, cell_floor(S, P, R, x0, y0, x1, y1, 0.0))
     return own >= cap, keep, floors

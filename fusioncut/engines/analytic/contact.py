@@ -41,6 +41,7 @@ from fusioncut.engines.analytic.sweeps import arc_depth, end_velocity, sweep_flo
 
 N_SCAN = 720
 ANGLE_TOL = 1e-10  # rad
+MANY = 12  # a grid cell holding more sweeps leaves out the dominated ones (.cells.relevant_sweeps)
 GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
 TWO_PI = 2.0 * math.pi
 _GOLDEN = 0.6180339887498949
@@ -93,7 +94,7 @@ def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.
     for i in range(n):
         for j in range(n):
             keep = relevant_sweeps(x0 + i * w, y0 + j * w, x0 + (i + 1) * w, y0 + (j + 1) * w, S, P, R, C, PP, NPC,
-                                   RR, zb, zt, eps)[1]
+                                   RR, zb, zt, eps, MANY)[1]
             items.extend(np.flatnonzero(keep).tolist())
             starts.append(len(items))
     return (np.array([x0, y0, w, n], dtype=np.float64), np.array(starts, dtype=np.int64),

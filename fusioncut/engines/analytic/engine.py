@@ -7,8 +7,9 @@ and holder do). Nothing is built or kept but the sweeps themselves (one row each
 
 * the **removed volume** of CL k integrates ``min(h_k, top) - max(L_k, bottom)`` over its
   footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint, cell by cell: tiles
-  (:func:`tiles`), quartered while many earlier sweeps can shape the removed height in them, each
-  cell integrated with only those (:mod:`.cells`; a cell where nothing can be removed is skipped);
+  (:func:`tiles`), quartered while many earlier sweeps can shape the removed height in them or a
+  quarter is proven to remove nothing (and is skipped), each cell integrated with only the sweeps
+  that can shape it there (:mod:`.cells`);
 * its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
   where material was before the CL and the tool's surface is on the sweep's front, their ends
   bisected to 1e-10 rad; the slices are laid out and converted to immersion angles as the B-Rep
@@ -68,7 +69,8 @@ from fusioncut.model.tools import MillingTool
 WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts as cut (zero-thickness walls)
 VOLUME_EPS = 1e-12  # mm³: a CL removing less is idle (air, or a rapid through air)
 TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
-CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps is quartered (.cells)
+CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps is quartered (.cells),
+# as is one with a quarter where nothing can be removed
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 N_TOUCH = 360  # angles per height scanned for the contact's height range
@@ -308,19 +310,27 @@ class AnalyticEngine:
         tables = self._tools
         P, NP, RR = tables.profiles, tables.counts, tables.radii
         total = 0.0
-        cells = tiles(x0, y0, x1, y1, TILE_RADII * profile.radius)
+
+        def cull(cell: tuple[float, float, float, float]):
+            meet = (CB[:, 0] <= cell[2]) & (CB[:, 2] >= cell[0]) & (CB[:, 1] <= cell[3]) & (CB[:, 3] >= cell[1])
+            return meet, *relevant_sweeps(*cell, row, profile.pieces, profile.radius, C[meet], P, NP, RR, s[2], s[5],
+                                          0.0, CELL_SWEEPS)
+
+        cells = [(c, cull(c)) for c in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius)]
         while cells:
-            cx0, cy0, cx1, cy1 = cells.pop()
-            meet = (CB[:, 0] <= cx1) & (CB[:, 2] >= cx0) & (CB[:, 1] <= cy1) & (CB[:, 3] >= cy0)
-            Ct = C[meet]
-            empty, keep, floors = relevant_sweeps(cx0, cy0, cx1, cy1, row, profile.pieces, profile.radius, Ct,
-                                                  P, NP, RR, s[2], s[5], 0.0)
+            (cx0, cy0, cx1, cy1), (meet, empty, keep, floors) = cells.pop()
             if empty:
                 continue
-            if keep.sum() > CELL_SWEEPS and cx1 - cx0 > MIN_CELL_RADII * profile.radius:
+            if cx1 - cx0 > MIN_CELL_RADII * profile.radius:
+                # quartered where many sweeps are left, or where a quarter is proven empty (its area
+                # then costs nothing)
                 mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
-                cells += [(cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1), (mx, my, cx1, cy1)]
-                continue
+                quarters = [(q, cull(q)) for q in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1),
+                                                   (mx, my, cx1, cy1))]
+                if keep.sum() > CELL_SWEEPS or any(c[1][1] for c in quarters):
+                    cells += quarters
+                    continue
+            Ct = C[meet]
             # the lowest floors first: the least lower surface is then met early, and the others'
             # closed-form floors skip them (volume.height_and_cause)
             order = np.flatnonzero(keep)[np.argsort(floors[keep], kind="stable")]

@@ -335,19 +335,30 @@ def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt
 
 @njit(cache=True)
 def _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt):
-    """A hash of the line at ``x``: the sequence of :func:`_state` along it (equal neighbours merged).
-    The inner integral is smooth in ``x`` while the sequence stays the same; where it changes (a
-    kink curve turns back, two cross, the removed region starts or ends) it is not."""
-    pts, live = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    """A hash of the line at ``x``: the sequence of :func:`_state` along it (equal neighbours merged),
+    probed as :func:`_with_kinks` probes it (a stretch proven empty is one state 0; the others at
+    :data:`N_PROBE` + 1 samples), without placing the changes: only the sequence counts here. The
+    inner integral is smooth in ``x`` while the sequence stays the same; where it changes (a kink
+    curve turns back, two cross, the removed region starts or ends) it is not."""
+    pts = _crossings_at_x(x, circles, segments, ylo, yhi)
     h = np.int64(7)
     last = np.int64(-2)
     for p in range(pts.shape[0] - 1):
-        st = np.int64(0)
-        if live[p]:
-            st = np.int64(_state(x, 0.5 * (pts[p] + pts[p + 1]), S, P, R, C, CB, PP, NPC, RR, zb, zt))
-        if st != last:
-            h = h * np.int64(1000003) + st + np.int64(11)
-            last = st
+        a, b = pts[p], pts[p + 1]
+        if b - a <= 0.0:
+            continue
+        if _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+            n = 0
+        else:
+            n = N_PROBE if b - a > 4 * KINK_TOL else 0
+        for i in range(n + 1):
+            st = np.int64(0)
+            if n > 0:
+                y = a + KINK_TOL if i == 0 else (a + (b - a) * i / N_PROBE if i < N_PROBE else b - KINK_TOL)
+                st = np.int64(_state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt))
+            if st != last:
+                h = h * np.int64(1000003) + st + np.int64(11)
+                last = st
     return h
 
 
