@@ -4,7 +4,7 @@ version of :mod:`fusioncut.analysis.stability` in the same run.
     OPENBLAS_NUM_THREADS=1 python benchmarks/stability_speed.py                 # synthetic program
     OPENBLAS_NUM_THREADS=1 python benchmarks/stability_speed.py --results DIR --rpm 10000 --flutes 3
 
-* **ZOA per CL**: :func:`~fusioncut.analysis.stability.stability_table` without SD (ZOA limit, margin
+* **ZOA per CL**: :func:`~fusioncut.analysis.stability_table.stability_table` without SD (ZOA limit, margin
   and nearest stable speed of every CL) over ``--cls`` synthetic CLs whose engagements all differ (no
   two share a computation: the worst case) or over the maps of a results folder (``--results``, rebuilt
   at the slice height the folder records; ``--slice-height`` for older folders), every CL at ``--rpm``
@@ -37,6 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fusioncut.analysis import stability as current  # noqa: E402
+from fusioncut.analysis import stability_table as current_table  # noqa: E402
 from fusioncut.analysis.dynamics import Mode, ToolDynamics, read_modes_json  # noqa: E402
 from fusioncut.analysis.forces import CuttingCoefficients  # noqa: E402
 from fusioncut.analysis.materials import AL7075_T6_CARBIDE  # noqa: E402
@@ -155,7 +156,7 @@ def main(argv: list[str] | None = None) -> None:
         maps, dz = synthetic_maps(args.cls), 0.5
         label = f"{len(maps)} synthetic CLs, all different"
     rpm = [args.rpm] * len(maps)
-    new = bench_zoa(current, maps, tool, AL7075_T6_CARBIDE, dyn, rpm, dz)
+    new = bench_zoa(current_table, maps, tool, AL7075_T6_CARBIDE, dyn, rpm, dz)
     old = bench_zoa(base, maps, tool, AL7075_T6_CARBIDE, dyn, rpm, dz)
     print(f"ZOA per CL, {label}, {args.rpm:g} rev/min:")
     print(f"  current {1e3 * new / len(maps):.3f} ms/CL   baseline {1e3 * old / len(maps):.3f} ms/CL   "

@@ -1,7 +1,7 @@
 """``fusioncut stability RESULTS --modes FILE --out DIR``: chatter stability per CL of a run.
 
 Writes ``stability.csv`` / ``stability.parquet`` (columns
-:data:`fusioncut.analysis.stability.STABILITY_COLUMNS`), ``lobes.png`` (ZOA and SD limit against the
+:data:`fusioncut.analysis.stability_table.STABILITY_COLUMNS`), ``lobes.png`` (ZOA and SD limit against the
 spindle speed for one CL, with every CL's (speed, ap) point of the same tool over it) and
 ``margin.png`` (ap / a_lim along the program); with ``--stick-out`` also the static deflection columns
 (:data:`fusioncut.analysis.deflection.DEFLECTION_COLUMNS`) and ``deflection.png``. The spindle speeds,
@@ -68,7 +68,7 @@ def stability(
     import pandas as pd
 
     from fusioncut.analysis.deflection import DEFLECTION_COLUMNS, SteppedCantilever, deflection_table
-    from fusioncut.analysis.stability import STABILITY_COLUMNS, stability_table
+    from fusioncut.analysis.stability_table import STABILITY_COLUMNS, stability_table
 
     rpm_range = _rpm_range(rpm_min, rpm_max)
     s = _setup(results_dir, program, _coefficients(material, coefficients), rpm, flutes, helix, slice_height)

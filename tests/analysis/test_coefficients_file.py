@@ -117,7 +117,7 @@ def test_calibrated_file_drives_forces_and_stability(tmp_path: Path) -> None:
                "--no-sd", "--no-plot", "--out", str(out), *common)
     assert r.exit_code == 0, r.output
     from fusioncut.analysis.dynamics import read_modes_json
-    from fusioncut.analysis.stability import stability_table
+    from fusioncut.analysis.stability_table import stability_table
 
     stab = pd.read_csv(out / "stability.csv")
     want = stability_table(maps, tool, got, read_modes_json(MODES), [9000.0, 9000.0], dz=0.5, sd=False)

@@ -16,8 +16,9 @@ import pytest
 
 from fusioncut.analysis.dynamics import Mode, ToolDynamics
 from fusioncut.analysis.forces import CuttingCoefficients
-from fusioncut.analysis.stability import (STABILITY_COLUMNS, ModalSystem, chatter_grid, cl_directional,
-                                          nearest_stable_rpm, sd_a_lim, sd_spectral_radius, zoa_a_lim, zoa_lobes)
+from fusioncut.analysis.stability import (ModalSystem, chatter_grid, cl_directional, nearest_stable_rpm, sd_a_lim,
+                                          sd_spectral_radius, zoa_a_lim, zoa_lobes)
+from fusioncut.analysis.stability_table import STABILITY_COLUMNS
 from fusioncut.errors import GeometryError
 from fusioncut.model import AngleInterval, CLStatus, EngagementMap, FlatEndMill, SliceEngagement, SpindleDirection
 from test_forces_real_program import PROGRAM, run  # noqa: F401  (the fixture: one engine run of a real program)
@@ -321,7 +322,7 @@ def test_sd_finds_the_flip_lobes_zoa_misses() -> None:
 def test_sd_not_computed_beyond_its_step_limit() -> None:
     """At 3000 rev/min a tooth period holds 9.2 periods of the 922 Hz mode: 12 steps each need 120 > 60
     steps, so no SD limit (NaN) and the table's margin is ZOA's; at 20000 rev/min 30 steps suffice."""
-    from fusioncut.analysis.stability import stability_table
+    from fusioncut.analysis.stability_table import stability_table
 
     cd = cl_directional(emap([(0, 180)]), tool(), COEF, dz=1.0)
     system = ModalSystem.from_dynamics(BENCH_X)
@@ -336,7 +337,7 @@ def test_table_shares_only_equal_computations() -> None:
     """A slot's mean factors do not change with the feed direction, its time-varying ones do (3 flutes:
     turning the frame is no time shift): with modes along x only, slots along X and along Y have one ZOA
     limit and two SD limits, each the direct one."""
-    from fusioncut.analysis.stability import stability_table
+    from fusioncut.analysis.stability_table import stability_table
 
     maps = [emap([(0, 180)], feed_angle=0.0), emap([(0, 180)], feed_angle=90.0)]
     t = stability_table(maps, tool(3), COEF, BENCH_X, [14000.0, 14000.0], dz=1.0)
@@ -476,7 +477,7 @@ def test_stability_command(tmp_path) -> None:
 @pytest.mark.skipif(not PROGRAM.exists(), reason="shared test data not available")
 def test_real_program_limits_from_saved_tables(run) -> None:
     from fusioncut.analysis.forces import engagement_maps_from_results, results_slice_height
-    from fusioncut.analysis.stability import stability_table
+    from fusioncut.analysis.stability_table import stability_table
     from fusioncut.io.results import load_results
     from test_forces_real_program import SLICE, _is_slot
 
@@ -511,7 +512,7 @@ def test_stability_command_modes_per_tool(tmp_path) -> None:
 
     from fusioncut.analysis.dynamics import read_modes_json
     from fusioncut.analysis.materials import AL7075_T6_CARBIDE as AL
-    from fusioncut.analysis.stability import stability_table
+    from fusioncut.analysis.stability_table import stability_table
     from fusioncut.cli.stability import register
     from fusioncut.io.results import ResultWriter
 

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from fusioncut.analysis.dynamics import read_modes_json
 from fusioncut.analysis.forces import forces_table
 from fusioncut.analysis.materials import AL7075_T6_CARBIDE as AL
-from fusioncut.analysis.stability import stability_table
+from fusioncut.analysis.stability_table import stability_table
 from fusioncut.engines.base import EngineOptions
 from fusioncut.errors import SourceLocation
 from fusioncut.model import AngleInterval, CLStatus, EngagementMap, FlatEndMill, SliceEngagement, SpindleDirection

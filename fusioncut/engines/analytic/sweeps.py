@@ -18,9 +18,9 @@ derivative ``g`` and the bracket ``[lo, hi]`` is shrunk (Illinois steps on ``g``
 bisection) until convexity bounds the value's error, ``min(-g(lo), g(hi)) (hi - lo)``, by
 :data:`VALUE_TOL` (closed forms where the derivative keeps a sign, a flat end mill's ramps, and on
 level moves: there the lowest tool is the one nearest ``p``). On an arc the points within ``R``
-form windows of angle around the direction of ``p``; each window is sampled at :data:`ARC_STEP` rad at most and every sampled local
-minimum is refined by golden section to ~1e-14 in ``t``: minima closer together than the step
-could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``.
+form windows of angle around the direction of ``p``; each window is sampled at :data:`ARC_STEP`
+rad at most and every sampled local minimum is refined by golden section to ~1e-14 in ``t``: minima
+closer together than the step could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``.
 
 ``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
 ``R``, so that a wall an earlier sweep left exactly where the tool stands now (a retraced pass) is
