@@ -52,10 +52,10 @@ from pathlib import Path
 import numpy as np
 
 from fusioncut.engines.analytic.area import contact_area
-from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
+from fusioncut.engines.analytic.contact import N_SCAN, front_limits, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
-from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
+from fusioncut.engines.analytic.sweeps import NCOL, arc_row, end_velocity, line_row
 from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
@@ -356,10 +356,21 @@ def _arcs_at(args: tuple, z: float) -> list[tuple[float, float]]:
 
 
 def _width(args: tuple, z: float) -> tuple[float, int]:
-    """The engaged arcs' total span (rad) at ``z`` mm above the tip and their number: the contact
-    area's integrand (:func:`.area.contact_area`)."""
+    """The engaged arcs' total span (rad) at ``z`` mm above the tip, and a code of their shape: the
+    contact area's integrand (:func:`.area.contact_area`), whose parts end where the code changes.
+    The code counts the arcs, the whole circle apart, and the arc ends that are the front's closed-
+    form limits (:func:`.contact.front_limits`): where an end leaves the front's limit for the
+    material's edge (an earlier pass's surface cutting into the front half) the span has a
+    square-root onset, which a part's end makes smooth."""
     arcs = _arcs_at(args, z)
-    return sum(w for _, w in arcs), len(arcs)
+    if len(arcs) == 1 and arcs[0][1] >= 2 * math.pi:
+        return 2 * math.pi, -1
+    row, pieces = args[0], args[1]
+    vx, vy, vz = end_velocity(row)
+    lim = front_limits(vx, vy, 0.0 if vz == 0.0 else profile_radius_slope(pieces, z) * vz)
+    on_front = sum(1 for a, w in arcs for end in (a, a + w) for f in lim
+                   if abs((end - f + math.pi) % (2 * math.pi) - math.pi) <= 1e-9)
+    return sum(w for _, w in arcs), len(arcs) + 1000 * on_front
 
 
 def tiles(x0: float, y0: float, x1: float, y1: float, size: float) -> list[tuple[float, float, float, float]]:
