@@ -14,16 +14,7 @@ from fusioncut.engines.analytic.cells import cell_ceiling, cell_floor
 from fusioncut.engines.analytic.profile import lower_profile
 from fusioncut.engines.analytic.sweeps import arc_row, line_row, sweep_lower
 from fusioncut.engines.base import EngineOptions
-from fusioncut.model.tools import BallEndMill, BullNoseEndMill, ChamferMill, FlatEndMill, TaperedEndMill
-
-TOOLS = {
-    "flat": FlatEndMill(10, 20),
-    "ball": BallEndMill(6, 20),
-    "bullnose": BullNoseEndMill(10, 20, corner_radius=2),
-    "tapered": TaperedEndMill(4, 20, taper_angle=10),
-    "chamfer": ChamferMill(10, 20, taper_angle=45),
-}
-coord = st.floats(-8, 8, allow_nan=False)
+from test_sweeps import TOOLS, coord  # the same tool families and coordinates
 
 
 def _points(rect, n=9):
