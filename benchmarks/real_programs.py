@@ -8,7 +8,9 @@
 The programs are the 3-axis programs of ``../shared/data`` that issue 26 names (CAMotics bear, cameo,
 flower_mold, wave, botomata; LinuxCNC 3D_Chips where a tool is known; the Fusion posts), each with
 its project's tools and workpiece where it has a CAMotics project, else its own tool comments and
-the stock the runner infers (:func:`fusioncut.io.stock.infer_stock`).
+the stock the runner infers (:func:`fusioncut.io.stock.infer_stock`); and a generated 3D finishing set
+(``gen_*``, :mod:`finishing_programs`: ball and bull-nose raster, waterline and spiral passes over a
+free-form surface with a ramp and helical entries).
 
 Since the workpiece before a CL follows from the path, the analytic engine starts a window at any
 CL (:meth:`AnalyticEngine.process` with ``start_at``: the sweeps before it are only indexed), so its
@@ -40,6 +42,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from finishing_programs import GENERATED  # beside this script, on the path when it runs
+from finishing_programs import load as load_generated
 from fusioncut.engines.analytic.engine import AnalyticEngine
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.cl_maps import cl_sequence
@@ -70,12 +74,15 @@ PROGRAMS = (
     Program("1110_wall", "fusion-posted/1110_wall_265bit.nc"),
     Program("1117_wall", "fusion-posted/1117_wall_28bit.nc"),
     Program("1072_face", "fusion-posted/1072_face_otherside.nc"),
+    *(Program(name, "") for name in GENERATED),
 )
 
 
 def load(program: Program) -> tuple[Toolpath, Stock, MillingTool | None]:
     """The program's toolpath, stock (its project's workpiece, else the inferred one) and the tool of
     moves that name none (a project's only tool, as CAMotics takes it; else None)."""
+    if program.name in GENERATED:
+        return load_generated(program.name)
     if program.project:
         project = read_camotics_project(SHARED / program.project)
         toolpath = read_toolpath(SHARED / program.path, tools=dict(project.tools))
