@@ -47,16 +47,30 @@ from fusioncut.model import (AngleInterval, CLStatus, EngagementMap, FlatEndMill
 BASELINE = "473aa9f"  # stability.py as before the compiled ZOA table pass and the reduced SD spectral radius
 
 
-def load_baseline(rev: str):
-    text = subprocess.run(["git", "show", f"{rev}:fusioncut/analysis/stability.py"], cwd=ROOT, check=True,
-                          capture_output=True, text=True).stdout
-    path = Path(tempfile.mkdtemp()) / "stability_baseline.py"
-    path.write_text(text)
-    spec = importlib.util.spec_from_file_location("stability_baseline", path)
+def _load(rev: str, path: str, name: str, imports: tuple[str, str] = ("", "")):
+    """The module ``path`` as of git revision ``rev``, loaded as ``name`` (``imports``: a text to
+    replace in its source, so that it imports another baseline module); None where it did not exist."""
+    shown = subprocess.run(["git", "show", f"{rev}:{path}"], cwd=ROOT, capture_output=True, text=True)
+    if shown.returncode != 0:
+        return None
+    file = Path(tempfile.mkdtemp()) / f"{name}.py"
+    file.write_text(shown.stdout.replace(*imports) if imports[0] else shown.stdout)
+    spec = importlib.util.spec_from_file_location(name, file)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # dataclasses look their module up
     spec.loader.exec_module(module)
     return module
+
+
+def load_baseline(rev: str):
+    """(stability.py, the module with its per-CL table) as of ``rev``: the table moved to
+    stability_table.py in 0fe49a2; before that it was in stability.py."""
+    module = _load(rev, "fusioncut/analysis/stability.py", "stability_baseline")
+    if module is None:
+        raise SystemExit(f"no fusioncut/analysis/stability.py at {rev}")
+    table = _load(rev, "fusioncut/analysis/stability_table.py", "stability_table_baseline",
+                  ("from fusioncut.analysis.stability import", "from stability_baseline import"))
+    return module, table or module
 
 
 def synthetic_maps(count: int, seed: int = 0) -> list[EngagementMap]:
@@ -146,7 +160,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--speeds", type=int, default=200)
     ap.add_argument("--baseline", default=BASELINE, help=f"git revision of the baseline (default {BASELINE})")
     args = ap.parse_args(argv)
-    base = load_baseline(args.baseline)
+    base, base_table = load_baseline(args.baseline)
     dyn = read_modes_json(ROOT / "docs" / "stability_modes_example.json")
     tool = FlatEndMill(diameter=10.0, flute_length=20.0, flutes=args.flutes, helix_angle=30.0)
     if args.results:
@@ -157,7 +171,7 @@ def main(argv: list[str] | None = None) -> None:
         label = f"{len(maps)} synthetic CLs, all different"
     rpm = [args.rpm] * len(maps)
     new = bench_zoa(current_table, maps, tool, AL7075_T6_CARBIDE, dyn, rpm, dz)
-    old = bench_zoa(base, maps, tool, AL7075_T6_CARBIDE, dyn, rpm, dz)
+    old = bench_zoa(base_table, maps, tool, AL7075_T6_CARBIDE, dyn, rpm, dz)
     print(f"ZOA per CL, {label}, {args.rpm:g} rev/min:")
     print(f"  current {1e3 * new / len(maps):.3f} ms/CL   baseline {1e3 * old / len(maps):.3f} ms/CL   "
           f"ratio {old / new:.2f}x")

@@ -17,7 +17,8 @@ and holder do). Nothing is built or kept but the sweeps themselves (one row each
   output is the same :class:`~fusioncut.model.engagement.EngagementMap` per CL;
 * the flute contact's height range (``ap``): the lowest and highest touching heights among the
   quarter slices and the heights of the stock's top and the earlier sweeps' ends (walking up from
-  the bottom and down from the stock's top), each bisected against its neighbour to 1e-10 mm;
+  the bottom and down from the stock's top), each found to 1e-10 mm against its neighbour
+  (:func:`contact_range`);
 * a slice band **rubs** (:mod:`fusioncut.engines.chip`) by the volume removed within its heights:
   the removed volume's integral split by the bands' edges on the same nodes;
 * the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`):
@@ -52,11 +53,11 @@ from pathlib import Path
 import numpy as np
 
 from fusioncut.engines.analytic.area import contact_area
+from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, front_limits, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, end_velocity, line_row
-from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_sequence, engagement_map, slice_heights
@@ -289,7 +290,7 @@ class AnalyticEngine:
     def _band_edges(self, ez: float, tool: MillingTool) -> np.ndarray:
         """Machine heights (mm) of the slice bands' edges from the tip at ``ez`` up to the flutes' or
         the stock's top, whichever is lower: the removed volume is split by them for the minimum chip
-        thickness (:mod:`fusioncut.engines.chip`). None (empty) where that test is off."""
+        thickness (:mod:`fusioncut.engines.chip`). Empty where that test is off."""
         dz = self.options.slice_height
         top = min(tool.flute_length, self.stock[5] - ez)
         if self.options.min_chip_thickness <= 0 or top <= 0:
