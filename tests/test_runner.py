@@ -58,6 +58,18 @@ def small_job(tmp_path: Path, program: str = PROGRAM, **options) -> tuple[Job, P
     return job, base
 
 
+def stop_after(n: int):
+    """An ``on_cl`` that stops the run (as Ctrl-C does) once ``n`` CLs are done."""
+    seen: list[int] = []
+
+    def on_cl(m, total):
+        seen.append(m.cl_index)
+        if len(seen) == n:
+            raise KeyboardInterrupt
+
+    return on_cl
+
+
 def tables(out: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
     r = load_results(out)
     return r.cl.drop(columns=TIME_COLUMNS), r.slices
@@ -106,14 +118,7 @@ def test_interrupted_run_resumes_to_identical_results(tmp_path):
     assert not ref.interrupted and ref.resumed_from == 0
 
     out = tmp_path / "out"
-    first_seen: list[int] = []
-
-    def stop_after_seven(m, total):
-        first_seen.append(m.cl_index)
-        if len(first_seen) == 7:
-            raise KeyboardInterrupt
-
-    r1 = run_job(job, base, out, on_cl=stop_after_seven, export_ipw=False)
+    r1 = run_job(job, base, out, on_cl=stop_after(7), export_ipw=False)
     assert r1.interrupted
     assert json.loads((out / "checkpoint" / "state.json").read_text())["next_cl"] == 7
     assert list(load_results(out).cl["cl"]) == list(range(7))

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from test_runner import stop_after
 from typer.testing import CliRunner
 
 from fusioncut.cli import app
@@ -51,18 +52,6 @@ def job_file(tmp_path: Path, **options) -> Path:
     path = tmp_path / "job.json"
     path.write_text(json.dumps(job))
     return path
-
-
-def stop_after(n: int):
-    """An ``on_cl`` that stops the run (as Ctrl-C does) once ``n`` CLs are done."""
-    seen: list[int] = []
-
-    def on_cl(m, total):
-        seen.append(m.cl_index)
-        if len(seen) == n:
-            raise KeyboardInterrupt
-
-    return on_cl
 
 
 def tables(out: Path) -> tuple[pd.DataFrame, pd.DataFrame]:

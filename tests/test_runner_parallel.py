@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from test_cli import runner
 from test_cli import small_job_file as _small_job_file
-from test_runner import PROGRAM, result_files
+from test_runner import PROGRAM, result_files, stop_after
 from test_runner import small_job as _small_job
 
 from fusioncut.cli import app
@@ -63,17 +63,6 @@ def small_job_file(tmp_path: Path, **kwargs) -> Path:
 
 def run_state(out: Path) -> dict:
     return json.loads((out / "checkpoint" / "run.json").read_text())
-
-
-def stop_after(n: int):
-    seen: list[int] = []
-
-    def on_cl(m, total):
-        seen.append(m.cl_index)
-        if len(seen) == n:
-            raise KeyboardInterrupt
-
-    return on_cl
 
 
 @pytest.fixture(scope="module")
