@@ -313,13 +313,15 @@ class AnalyticEngine:
         total = 0.0
 
         def cull(cell: tuple[float, float, float, float]):
+            """(the earlier sweeps whose boxes meet the cell, their boxes, and .cells.relevant_sweeps of them)"""
             meet = (CB[:, 0] <= cell[2]) & (CB[:, 2] >= cell[0]) & (CB[:, 1] <= cell[3]) & (CB[:, 3] >= cell[1])
-            return meet, *relevant_sweeps(*cell, row, profile.pieces, profile.radius, C[meet], P, NP, RR, s[2], s[5],
-                                          0.0, CELL_SWEEPS)
+            Cm = C[meet]
+            return Cm, CB[meet], *relevant_sweeps(*cell, row, profile.pieces, profile.radius, Cm, P, NP, RR, s[2],
+                                                  s[5], 0.0, CELL_SWEEPS)
 
         cells = [(c, cull(c)) for c in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius)]
         while cells:
-            (cx0, cy0, cx1, cy1), (meet, empty, keep, floors) = cells.pop()
+            (cx0, cy0, cx1, cy1), (Cm, CBm, empty, keep, floors) = cells.pop()
             if empty:
                 continue
             if cx1 - cx0 > MIN_CELL_RADII * profile.radius:
@@ -328,14 +330,13 @@ class AnalyticEngine:
                 mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
                 quarters = [(q, cull(q)) for q in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1),
                                                    (mx, my, cx1, cy1))]
-                if keep.sum() > CELL_SWEEPS or any(c[1][1] for c in quarters):
+                if keep.sum() > CELL_SWEEPS or any(c[1][2] for c in quarters):
                     cells += quarters
                     continue
-            Ct = C[meet]
             # the lowest floors first: the least lower surface is then met early, and the others'
             # closed-form floors skip them (volume.height_and_cause)
             order = np.flatnonzero(keep)[np.argsort(floors[keep], kind="stable")]
-            Ct, CBt = Ct[order], CB[meet][order]
+            Ct, CBt = Cm[order], CBm[order]
             rows = np.vstack([row[None, :], Ct])
             radii = [_break_radii(r, P[int(r[12]), :NP[int(r[12])]], (s[2], s[5])) for r in rows]
             circles, segments = boundary_curves(rows, radii)

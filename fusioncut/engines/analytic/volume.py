@@ -180,12 +180,6 @@ def _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 
 @njit(cache=True)
-def removed_height(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
-    """max(0, min(h, z_top) - max(L, z_bottom)) at (px, py), mm."""
-    return height_and_cause(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top)[0]
-
-
-@njit(cache=True)
 def _smooth(a, b, u):
     """The point of [a, b] at the Gauss node ``u`` in [-1, 1] under y = a + (b - a) s^2 (3 - 2 s),
     s = (u + 1) / 2, and the weight factor dy/du: the map's zero slope at both ends turns a square
