@@ -371,6 +371,7 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
         snapshots, export_ipw = set(), False
     exported: list[Path] = []
     interrupted = False
+    ran = "analytic" if engine.kind == EngineKind.ANALYTIC else "brep"
     writer = ResultWriter(out_dir, job_hash=job_id, tools=tools, options=engine.options, expected_cls=expected,
                           keep_below=start_at)
     # engine_state: index of the last CL the engine state includes; recorded: the last CL whose row
@@ -395,6 +396,8 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
                 if m is None:
                     break
                 engine_state = m.cl_index
+                if not m.engine:  # an engine that does not say: every CL of it is its own
+                    m = replace(m, engine=ran)
                 writer.add(m, length_mm=segments[m.cl_index].length, spindle_rpm=segments[m.cl_index].spindle_rpm)
                 recorded = m.cl_index
                 ops.setdefault(m.operation, OperationSummary(m.operation)).add(m)

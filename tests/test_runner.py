@@ -249,6 +249,7 @@ def test_ipw_export_and_snapshots(tmp_path):
     r = run_job(job, base, out)
     assert {p.name for p in r.exported} == {"ipw.step", "ipw.stl", "ipw_cl000008.step"}
     assert volume(stock_solid(SolidStock(out / "ipw.step"))) == pytest.approx(r.final_volume, rel=1e-6)
+    assert set(load_results(out).cl["engine"]) == {"brep"}  # the B-Rep engine's rows say so
     removed_0_to_8 = load_results(out).cl.query("cl <= 8")["removed_volume_mm3"].sum()
     assert removed_0_to_8 > 0
     snap = volume(stock_solid(SolidStock(out / "ipw_cl000008.step")))

@@ -80,6 +80,7 @@ def test_cli_run_with_the_analytic_engine_gives_the_engines_maps(tmp_path):
     maps = list(AnalyticEngine(p.options).run(p.toolpath, p.stock, p.default_tool))
     assert list(cl["cl"]) == [m.cl_index for m in maps] and len(maps) > 10
     assert list(cl["status"].astype(str)) == [m.status.value for m in maps]
+    assert set(cl["engine"]) == {"analytic"} and {m.engine for m in maps} == {"analytic"}
     for column, values in (("removed_volume_mm3", [m.removed_volume for m in maps]),
                            ("ae_mm", [m.ae for m in maps]), ("ap_mm", [m.ap for m in maps])):
         assert list(cl[column]) == pytest.approx(values, abs=1e-12, rel=1e-12), column

@@ -69,6 +69,8 @@ CL_COLUMNS: tuple[Column, ...] = (
     _c("sweep_method", "string", "", "how the swept volume was built: exact, step (ramp or helix piece swept level at its "
        "end height, within ramp_step) or sampled; empty when no sweep was built (no material within reach)"),
     _c("time_ms", "float64", "ms", "engine compute time of the CL (its total timing)"),
+    _c("engine", "string", "", "which engine computed the CL: analytic, or brep (the B-Rep engine, also where "
+       "the analytic engine handed it a CL it could not compute); empty: not recorded"),
 )
 
 SLICE_COLUMNS: tuple[Column, ...] = (

@@ -72,8 +72,8 @@ if __doc__:  # the column tables, rendered from their one description (absent un
 
 FORMAT_NAME = "fusioncut-results"
 # 2: metadata.json records engine_options, slice_height_mm and full tool records; cl has spindle_rpm,
-# slices have z_lo_mm / z_hi_mm
-FORMAT_VERSION = 2
+# slices have z_lo_mm / z_hi_mm. 3: cl has engine (which engine computed each CL)
+FORMAT_VERSION = 3
 METADATA_KEY = b"fusioncut"
 
 ANGLE_CONVENTION = (
@@ -174,6 +174,7 @@ def cl_row(em: EngagementMap, length_mm: float | None = None, spindle_rpm: float
         "mrr_mm3_min": mrr,
         "sweep_method": em.sweep_method,
         "time_ms": float(dict(em.timings_ms).get("total", sum(t for _, t in em.timings_ms))),
+        "engine": em.engine,
     }
 
 
@@ -524,7 +525,8 @@ class Results:
     recorded); ``tools``: tool label -> the :class:`~fusioncut.model.tools.MillingTool` rebuilt from
     its record. ``missing`` names what the folder does not record (results written before it was, or
     a tool without a full record) with why: ``engine_options``, ``slice_height``, ``spindle_rpm``
-    (NaN column), ``slice_bands`` (NaN ``z_lo_mm``/``z_hi_mm``), ``tool <label>``.
+    (NaN column), ``slice_bands`` (NaN ``z_lo_mm``/``z_hi_mm``), ``engine`` (empty ``engine`` column:
+    an older folder whose options do not say the engine either), ``tool <label>``.
     """
 
     cl: pd.DataFrame
@@ -580,11 +582,13 @@ def _read_csv(path: Path, columns: tuple[Column, ...], filled: set[str] | None =
 
 # Columns added after results were first written, with the value they mean in older results: such a
 # folder still loads. A CL of an older run was never called rubbing (0); its spindle speed and its
-# slices' bands were not recorded (NaN: unknown, and named in Results.missing).
+# slices' bands were not recorded (NaN: unknown, and named in Results.missing). Its engine is the
+# one engine_options names (an older run had no per-CL fallback), else unknown ("").
 ADDED_COLUMNS: dict[str, Any] = {"rubbing_slices": 0, "spindle_rpm": math.nan, "z_lo_mm": math.nan,
-                                 "z_hi_mm": math.nan}
+                                 "z_hi_mm": math.nan, "engine": ""}
 # what Results.missing calls an added column an older folder lacks, and why
-_NOT_RECORDED = {"spindle_rpm": "spindle_rpm", "z_lo_mm": "slice_bands", "z_hi_mm": "slice_bands"}
+_NOT_RECORDED = {"spindle_rpm": "spindle_rpm", "z_lo_mm": "slice_bands", "z_hi_mm": "slice_bands",
+                 "engine": "engine"}
 
 
 def _with_later_columns(df: pd.DataFrame, columns: tuple[Column, ...], path: Path,
@@ -639,11 +643,17 @@ def load_results(path: str | os.PathLike[str], *, prefer: str = "parquet") -> Re
     slices = slices[slices["cl"].isin(cl["cl"])].reset_index(drop=True)
     summary_path = directory / "summary.csv"
     summary = _read_csv(summary_path, SUMMARY_COLUMNS) if summary_path.exists() else summarize(cl)
-    missing = {_NOT_RECORDED[name]: "results written before it was recorded"
-               for name in sorted(filled) if name in _NOT_RECORDED}
     options = meta.get("engine_options")
     if not isinstance(options, dict):
         options = None
+    if "engine" in filled:  # an older run ran one engine throughout: the one its options name
+        ran = (options or {}).get("engine", "brep" if options is not None else "")
+        if ran in ("brep", "analytic"):
+            filled.discard("engine")
+            cl["engine"] = pd.Series([ran] * len(cl), dtype="string")
+    missing = {_NOT_RECORDED[name]: "results written before it was recorded"
+               for name in sorted(filled) if name in _NOT_RECORDED}
+    if options is None:
         missing["engine_options"] = "the engine options are not recorded"
     slice_height = meta.get("slice_height_mm")
     if not isinstance(slice_height, (int, float)) or isinstance(slice_height, bool) or not slice_height > 0:

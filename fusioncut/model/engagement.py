@@ -68,6 +68,9 @@ class EngagementMap:
     ``rubbing_slices``: slices whose contact arcs only rub (the material removed in their band is
     thinner across the path than the minimum chip thickness, :mod:`fusioncut.engines.chip`); their
     arcs are left out of ``slices`` and ``axial_range`` covers only the slices that cut.
+    ``engine``: which engine computed the CL, ``"analytic"`` or ``"brep"`` (the analytic engine
+    hands a CL it cannot compute to the B-Rep engine, see
+    :mod:`fusioncut.engines.analytic.fallback`); ``""`` until an engine or the runner says.
     """
 
     cl_index: int
@@ -90,6 +93,7 @@ class EngagementMap:
     axial_range: tuple[float, float] = (0.0, 0.0)  # z-range (mm above the tip) of flute contact
     timings_ms: tuple[tuple[str, float], ...] = ()
     rubbing_slices: int = 0
+    engine: str = ""
 
     @property
     def engaged_slices(self) -> tuple[SliceEngagement, ...]:

@@ -474,3 +474,31 @@ def test_a_run_records_its_options_tools_and_speeds(tmp_path):
     assert r.cl["ap_mm"].max() == pytest.approx(1.3, abs=1e-9)
     top = r.slices.groupby("cl")["z_hi_mm"].max() - r.slices.groupby("cl")["z_lo_mm"].min()
     np.testing.assert_allclose(top.to_numpy(), r.cl.set_index("cl").loc[top.index, "ap_mm"].to_numpy(), atol=1e-9)
+
+
+@pytest.mark.parametrize("prefer", ["parquet", "csv"])
+def test_each_row_says_which_engine_computed_it_and_older_folders_take_their_options_engine(tmp_path, prefer):
+    """``engine`` per CL row (format 3): what the map says. A folder written before the column took
+    the engine its options name (one engine ran every CL then); without options it is unknown."""
+    with ResultWriter(tmp_path, options=EngineOptions(slice_height=DZ)) as w:
+        w.add(dataclasses.replace(engine_em(1), engine="analytic"))
+        w.add(dataclasses.replace(engine_em(2), engine="brep"))
+    meta = json.loads((tmp_path / "metadata.json").read_text())
+    assert meta["format_version"] == 3
+    r = load_results(tmp_path, prefer=prefer)
+    assert r.cl["engine"].tolist() == ["analytic", "brep"] and "engine" not in r.missing
+    for options, ran, missing in (({"engine": "analytic"}, "analytic", False), ({}, "brep", False), (None, "", True)):
+        old_meta = {**meta, "format_version": 2, "engine_options": options}
+        (tmp_path / "metadata.json").write_text(json.dumps(old_meta))
+        table = pq.read_table(tmp_path / "cl.parquet")
+        pq.write_table(table.drop(["engine"]).replace_schema_metadata({b"fusioncut": json.dumps(old_meta).encode()}),
+                       tmp_path / "old.parquet")
+        old = tmp_path / "old"
+        old.mkdir(exist_ok=True)
+        (tmp_path / "old.parquet").replace(old / "cl.parquet")
+        for name in ("slices.parquet", "slices.csv", "metadata.json"):
+            (old / name).write_bytes((tmp_path / name).read_bytes())
+        csv = pd.read_csv(tmp_path / "cl.csv", dtype=str, keep_default_na=False)
+        csv.drop(columns=["engine"]).to_csv(old / "cl.csv", index=False)
+        r = load_results(old, prefer=prefer)
+        assert r.cl["engine"].tolist() == [ran, ran] and ("engine" in r.missing) == missing, options

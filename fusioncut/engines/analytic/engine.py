@@ -226,7 +226,11 @@ class AnalyticEngine:
         return self._index
 
     def step(self, cl: CL) -> EngagementMap:
-        """Process one CL segment; ``timings_ms`` holds each stage's wall time and the ``total`` (ms)."""
+        """Process one CL segment (its map says ``engine="analytic"``); ``timings_ms`` holds each
+        stage's wall time and the ``total`` (ms)."""
+        return replace(self._step(cl), engine=EngineKind.ANALYTIC.value)
+
+    def _step(self, cl: CL) -> EngagementMap:
         move, tool = cl.move, cl.tool
         t0 = time.perf_counter()
         profile = lower_profile(tool)
