@@ -27,7 +27,12 @@ The engine option ``engine="analytic"`` runs :class:`~fusioncut.engines.analytic
 (exact sweeps, no Booleans) instead: box stocks and tools of revolution only, checked before anything
 is written; with ``workers`` or ``scheduler`` its CLs are computed in chunks on Dask workers
 (:mod:`fusioncut.engines.analytic.parallel`, the same rows); it keeps no B-Rep workpiece, so the
-IPW export and snapshots are skipped with one warning.
+IPW export and snapshots are skipped with one warning. ``engine="auto"`` (the default) is resolved
+before anything is written (:func:`resolve_engine`): the analytic engine where it applies to the
+whole run and no IPW export or snapshot is asked, else the B-Rep engine, with one log line saying
+why. ``metadata.json``'s ``engine_options.engine`` and the checkpoint's ``run.json`` record the
+engine that ran (a checkpoint of the other engine is not resumed), and each ``cl`` row its
+``engine``.
 """
 from __future__ import annotations
 
@@ -53,7 +58,7 @@ from fusioncut.errors import FusionCutError, InputError
 from fusioncut.io import tool_sources
 from fusioncut.io.job import RUN_OPTIONS, Job, build_stock, job_hash, read_toolpath
 from fusioncut.io.results import ResultWriter, load_results
-from fusioncut.model import CLStatus, EngagementMap, MillingTool, Move, Stock, Toolpath
+from fusioncut.model import BoxStock, CLStatus, EngagementMap, MillingTool, Move, Stock, Toolpath
 
 log = logging.getLogger("fusioncut.run")
 
@@ -64,7 +69,7 @@ DEFAULT_CHECKPOINT_EVERY = 200
 PARALLEL_CELL_SIZE = EngineOptions().cell_size  # mm: the cells of a parallel run whose job asks for none
 
 __all__ = [
-    "OperationSummary", "PreparedJob", "RunPlan", "RunResult", "prepare_job", "read_toolpath", "run_job",
+    "OperationSummary", "PreparedJob", "RunPlan", "RunResult", "prepare_job", "read_toolpath", "resolve_engine", "run_job",
     "run_toolpath",
 ]
 
@@ -273,6 +278,7 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
     options = options or EngineOptions()
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
+    options = resolve_engine(options, toolpath, stock, default_tool, export_ipw or bool(tuple(snapshot_cls)))
     with _CtrlC() as ctrl_c:  # also over the cluster's start and close: Ctrl-C there only asks to stop
         engine = _engine(options, workers, scheduler)
         try:
@@ -282,6 +288,41 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
             engine.close()
     result.seconds = time.perf_counter() - t0
     return result
+
+
+def resolve_engine(options: EngineOptions, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None,
+                   wants_ipw: bool = False) -> EngineOptions:
+    """``options`` with ``engine="auto"`` resolved, before anything is written: ``analytic`` when the
+    analytic engine applies to the whole run (a box stock, every tool passing
+    :meth:`AnalyticEngine.check_tools`, exact sweeps, and no B-Rep workpiece wanted: ``wants_ipw``,
+    an IPW export or snapshot asked), else ``brep``; one INFO line of the log says which and why
+    (naming the tool or the stock). Options asking for an engine by name are returned as given."""
+    if options.engine != EngineKind.AUTO:
+        return options
+    why = _why_not_analytic(options, toolpath, stock, default_tool, wants_ipw)
+    if why:
+        log.info("engine auto: the B-Rep engine runs this job, as %s", why)
+        return replace(options, engine=EngineKind.BREP)
+    log.info("engine auto: the analytic engine runs this job (a box stock, tools of revolution without undercut, "
+             "exact sweeps, no IPW export or snapshot asked)")
+    return replace(options, engine=EngineKind.ANALYTIC)
+
+
+def _why_not_analytic(options: EngineOptions, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None,
+                      wants_ipw: bool) -> str:
+    """Why the analytic engine does not apply to a run ('' when it does)."""
+    if not isinstance(stock, BoxStock):
+        return f"the analytic engine needs a box stock and the stock is a {type(stock).__name__}"
+    if not options.exact:
+        return f"sweep {options.sweep.value!r} is asked (the analytic engine sweeps exactly)"
+    try:
+        AnalyticEngine(options).check_tools(toolpath, default_tool)
+    except FusionCutError as exc:
+        return f"the analytic engine cannot sweep a tool: {exc}"
+    if wants_ipw:
+        return ("an IPW export or snapshot is asked, which needs the B-Rep workpiece (the analytic engine keeps "
+                "none; without the export, e.g. --no-ipw-export, the analytic engine runs it)")
+    return ""
 
 
 def _engine(options: EngineOptions, workers: int, scheduler: str | None) -> Engine:
@@ -341,6 +382,7 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
     if engine.kind == EngineKind.ANALYTIC:
         engine.check_tools(toolpath, default_tool)  # type: ignore[attr-defined]  # before anything is written
 
+    ran = _engine_name(engine)
     start_at, kept_rows = (_resume_point(engine, out_dir, job_id, total) if resume else (0, []))
     if start_at == 0:
         if engine.shares_cells and options.cell_size is None:
@@ -349,7 +391,7 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
                      PARALLEL_CELL_SIZE)
         engine.start(stock)  # reads and checks a stock solid: still before anything is written
         _clear_previous_run(out_dir)
-        _write_run_state(ck_dir, job_id, engine.options.cell_size)
+        _write_run_state(ck_dir, job_id, engine.options.cell_size, ran)
     else:
         log.warning("resuming from the checkpoint in %s at CL %d of %d", ck_dir, start_at, total)
         _continue_with_checkpoint_cells(engine, ck_dir)
@@ -371,7 +413,6 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
         snapshots, export_ipw = set(), False
     exported: list[Path] = []
     interrupted = False
-    ran = "analytic" if engine.kind == EngineKind.ANALYTIC else "brep"
     writer = ResultWriter(out_dir, job_hash=job_id, tools=tools, options=engine.options, expected_cls=expected,
                           keep_below=start_at)
     # engine_state: index of the last CL the engine state includes; recorded: the last CL whose row
@@ -482,10 +523,17 @@ def _export(engine: Engine, paths: list[Path]) -> list[Path]:
 # checkpoints
 
 
-def _write_run_state(ck_dir: Path, job_id: str, cell_size: float | None) -> None:
+def _engine_name(engine: Engine) -> str:
+    """What the rows and the checkpoint call the engine: ``analytic`` or ``brep`` (either B-Rep kind:
+    their checkpoints resume in each other)."""
+    return EngineKind.ANALYTIC.value if engine.kind == EngineKind.ANALYTIC else EngineKind.BREP.value
+
+
+def _write_run_state(ck_dir: Path, job_id: str, cell_size: float | None, engine: str) -> None:
     ck_dir.mkdir(parents=True, exist_ok=True)
     tmp = ck_dir / (RUN_STATE + ".tmp")
-    tmp.write_text(json.dumps({"job_hash": job_id, "fusioncut_version": __version__, "cell_size": cell_size}))
+    tmp.write_text(json.dumps({"job_hash": job_id, "fusioncut_version": __version__, "cell_size": cell_size,
+                               "engine": engine}))
     os.replace(tmp, ck_dir / RUN_STATE)
 
 
@@ -524,6 +572,10 @@ def _resume_point(engine: Engine, out_dir: Path, job_id: str, total: int) -> tup
         return 0, []
     if state.get("job_hash") != job_id or state.get("fusioncut_version") != __version__:
         log.warning("the checkpoint in %s is of another job or FusionCut version; starting over", ck_dir)
+        return 0, []
+    if state.get("engine", _engine_name(engine)) != _engine_name(engine):  # engine 'auto' resolved otherwise
+        log.warning("the checkpoint in %s is of the %s engine and this run's is the %s engine; starting over",
+                    ck_dir, state["engine"], _engine_name(engine))
         return 0, []
     next_cl = engine.load_checkpoint(ck_dir)
     if not next_cl:

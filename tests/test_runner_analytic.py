@@ -7,6 +7,7 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from test_runner import stop_after
@@ -204,3 +205,145 @@ def test_a_checkpoint_of_another_toolpath_is_refused(tmp_path):
         next(b.process(paths[1].toolpath, paths[1].default_tool, start_at=9))
     assert a.load_checkpoint(tmp_path / "ck") == 9  # its own toolpath resumes
     assert next(a.process(paths[0].toolpath, paths[0].default_tool, start_at=9)).cl_index == 9
+
+
+def auto_job(tmp_path: Path, **changes) -> tuple[Job, Path]:
+    """The module's job without an engine named (engine 'auto', the default)."""
+    path = job_file(tmp_path)
+    data = json.loads(path.read_text())
+    del data["options"]["engine"]
+    data.update(changes)
+    path.write_text(json.dumps(data))
+    return load_job(path)
+
+
+def test_auto_is_the_default_and_runs_the_analytic_engine_where_it_applies(tmp_path, caplog):
+    job, base = auto_job(tmp_path)
+    assert job.options.engine == "auto" and EngineOptions().engine == "auto"
+    with caplog.at_level(logging.INFO, logger="fusioncut.run"):
+        r = run_job(job, base, tmp_path / "out", export_ipw=False)
+    assert "engine auto: the analytic engine runs this job" in caplog.text
+    assert json.loads((tmp_path / "out" / "metadata.json").read_text())["engine_options"]["engine"] == "analytic"
+    assert set(load_results(tmp_path / "out").cl["engine"]) == {"analytic"} and r.conservation_error < 1e-9
+    assert json.loads((tmp_path / "out" / "checkpoint" / "run.json").read_text())["engine"] == "analytic"
+    analytic = job.model_copy(update={"options": job.options.model_copy(update={"engine": "analytic"})})
+    run_job(analytic, base, tmp_path / "named", export_ipw=False)
+    (cl_a, sl_a), (cl_b, sl_b) = tables(tmp_path / "out"), tables(tmp_path / "named")
+    pd.testing.assert_frame_equal(cl_a, cl_b, check_exact=True)
+    pd.testing.assert_frame_equal(sl_a, sl_b, check_exact=True)
+
+
+@pytest.mark.parametrize("case, why", [
+    ("export", "an IPW export or snapshot is asked"),
+    ("cylinder", "needs a box stock and the stock is a CylinderStock"),
+    ("sampled", "sweep 'sampled' is asked"),
+    ("tool", "cannot sweep a tool: tool T2: its lower profile is not convex"),
+])
+def test_auto_runs_the_brep_engine_where_the_analytic_one_does_not_apply_and_says_why(tmp_path, caplog, monkeypatch,
+                                                                                      case, why):
+    changes: dict = {}
+    if case == "cylinder":
+        changes["stock"] = {"kind": "cylinder", "base_center": [15, 10, -10], "radius": 18, "height": 10}
+    job, base = auto_job(tmp_path, **changes)
+    if case == "sampled":
+        job = job.model_copy(update={"options": job.options.model_copy(update={"sweep": "sampled"})})
+    if case == "tool":
+        from fusioncut.engines.analytic import engine as analytic
+        from fusioncut.engines.analytic.profile import UnsupportedTool
+
+        real = analytic.lower_profile
+
+        def refuse_ball(tool):
+            if tool.number == 2:
+                raise UnsupportedTool(f"tool {tool.label}: its lower profile is not convex")
+            return real(tool)
+
+        monkeypatch.setattr(analytic, "lower_profile", refuse_ball)
+    with caplog.at_level(logging.INFO, logger="fusioncut.run"):
+        run_job(job, base, tmp_path / "out", export_ipw=case == "export", resume=False)
+    assert "engine auto: the B-Rep engine runs this job, as" in caplog.text and why in caplog.text
+    assert json.loads((tmp_path / "out" / "metadata.json").read_text())["engine_options"]["engine"] == "brep"
+    assert set(load_results(tmp_path / "out").cl["engine"]) == {"brep"}
+    assert (tmp_path / "out" / "ipw.step").exists() == (case == "export")
+
+
+def test_a_checkpoint_of_the_engine_auto_did_not_resolve_to_is_not_resumed(tmp_path, caplog):
+    job, base = auto_job(tmp_path)
+    out = tmp_path / "out"
+    assert run_job(job, base, out, on_cl=stop_after(9), export_ipw=False).interrupted  # analytic
+    with caplog.at_level(logging.WARNING, logger="fusioncut.run"):
+        again = run_job(job, base, out)  # the IPW export asked: brep
+    assert again.resumed_from == 0 and "is of the analytic engine and this run's is the brep engine" in caplog.text
+    assert set(load_results(out).cl["engine"]) == {"brep"} and (out / "ipw.step").exists()
+
+
+def fail_analytic_at(monkeypatch, k: int) -> None:
+    """Make the analytic step's volume stage raise on CL ``k`` (it runs once per CL, in order)."""
+    real, calls = AnalyticEngine._removed, iter(range(10 ** 6))
+
+    def removed(self, *args):
+        if next(calls) == k:
+            raise RuntimeError("a stand-in for a numerical failure")
+        return real(self, *args)
+
+    monkeypatch.setattr(AnalyticEngine, "_removed", removed)
+
+
+ANGLES = ["entry_min_deg", "entry_max_deg", "exit_min_deg", "exit_max_deg"]
+
+
+@pytest.mark.parametrize("operation", ["Slot", "Ramp"])
+def test_a_cl_the_analytic_engine_cannot_compute_is_computed_by_the_brep_engine(tmp_path, monkeypatch, operation):
+    """The volume stage raises on one CL (the slot's last, or a piece of the ramp, swept by the B-Rep
+    engine as a level step): its row comes from the B-Rep engine on a local workpiece and agrees
+    with an all-B-Rep run to 1e-6 mm³ and 0.001°; every other row is the all-analytic run's."""
+    job, base = load_job(job_file(tmp_path))
+    run_job(job, base, tmp_path / "ana", export_ipw=False)
+    brep_job = job.model_copy(update={"options": job.options.model_copy(update={"engine": "brep"})})
+    run_job(brep_job, base, tmp_path / "brep", export_ipw=False)
+    ana, brep = load_results(tmp_path / "ana"), load_results(tmp_path / "brep")
+    cut = ana.cl[(ana.cl["operation"] == operation) & (ana.cl["status"] == "engaged")]["cl"]
+    k = int(cut.iloc[-1] if operation == "Slot" else cut.iloc[len(cut) // 2])
+    fail_analytic_at(monkeypatch, k)
+    r = run_job(job, base, tmp_path / "out", export_ipw=False)
+    out = load_results(tmp_path / "out")
+    row, want = out.row(k), brep.row(k)
+    assert row["engine"] == "brep" and row["status"] == "engaged" and "RuntimeError" in row["warnings"]
+    assert row["removed_volume_mm3"] == pytest.approx(want["removed_volume_mm3"], abs=1e-6)
+    for column in ANGLES:
+        assert row[column] == pytest.approx(want[column], abs=1e-3), column
+    assert row["ap_mm"] == pytest.approx(want["ap_mm"], abs=1e-6) and row["ae_mm"] == pytest.approx(want["ae_mm"], abs=1e-6)
+    s, w = out.slices_of(k), brep.slices_of(k)
+    assert len(s) == len(w) and np.allclose(s[["entry_deg", "exit_deg"]], w[["entry_deg", "exit_deg"]], atol=1e-3)
+    others, ref = out.cl[out.cl["cl"] != k], ana.cl[ana.cl["cl"] != k]
+    pd.testing.assert_frame_equal(others.drop(columns=["time_ms"]).reset_index(drop=True),
+                                  ref.drop(columns=["time_ms"]).reset_index(drop=True), check_exact=True)
+    assert set(others["engine"]) == {"analytic"}
+    assert r.removed_volume == pytest.approx(ana.cl["removed_volume_mm3"].sum() - ana.row(k)["removed_volume_mm3"]
+                                             + want["removed_volume_mm3"], abs=1e-6)
+
+
+def test_a_cl_neither_engine_computes_fails_alone(tmp_path, monkeypatch):
+    """Where the B-Rep engine fails the CL too, its row is FAILED naming both errors; the run goes on
+    and the later CLs are the all-analytic run's (the failed CL's sweep counts as cut)."""
+    from fusioncut.engines.brep.engine import BRepEngine
+
+    job, base = load_job(job_file(tmp_path))
+    run_job(job, base, tmp_path / "ana", export_ipw=False)
+    ana = load_results(tmp_path / "ana")
+    k = int(ana.cl[(ana.cl["operation"] == "Slot") & (ana.cl["status"] == "engaged")]["cl"].iloc[1])
+    fail_analytic_at(monkeypatch, k)
+
+    def kernel_trouble(self, *cl):
+        raise RuntimeError("a stand-in for a kernel failure")
+
+    monkeypatch.setattr(BRepEngine, "step", kernel_trouble)
+    run_job(job, base, tmp_path / "out", export_ipw=False)
+    out = load_results(tmp_path / "out")
+    row = out.row(k)
+    assert row["status"] == "failed" and row["engine"] == "brep"
+    assert "analytic engine: RuntimeError: a stand-in for a numerical failure" in row["reason"]
+    assert "B-Rep engine: RuntimeError: a stand-in for a kernel failure" in row["reason"]
+    later = out.cl[out.cl["cl"] > k].drop(columns=["time_ms"]).reset_index(drop=True)
+    pd.testing.assert_frame_equal(later, ana.cl[ana.cl["cl"] > k].drop(columns=["time_ms"]).reset_index(drop=True),
+                                  check_exact=True)

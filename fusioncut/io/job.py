@@ -192,7 +192,7 @@ OPTION_BOUNDS: dict[str, dict[str, float]] = {
     "merge_growth": {"gt": 0}, "fuzzy": {"ge": 0}, "ceiling_pixel": {"gt": 0},
 }
 # the values a job may ask for where the option's type holds more (SweepMethod.STEP is only reported)
-OPTION_TYPES: dict[str, Any] = {"sweep": Literal["exact", "sampled"], "engine": Literal["brep", "analytic"]}
+OPTION_TYPES: dict[str, Any] = {"sweep": Literal["exact", "sampled"], "engine": Literal["auto", "brep", "analytic"]}
 
 
 @dataclass(frozen=True)
@@ -434,9 +434,10 @@ def build_stock(spec: StockSpec, base: Path) -> Stock | None:
 def job_hash(job: Job, base: Path) -> str:
     """SHA-256 (16 hex digits) of the normalised job without its run options, and of the bytes of
     every input file (toolpaths, tool library, stock solid). Equal hashes mean equal results.
-    The ``engine`` option counts only when it is not the default, so the hash of a job that does
-    not ask for another engine is what it was before the option existed."""
-    defaults = {"engine"} if job.options.engine == EngineOptions().engine else set()
+    The ``engine`` option counts only when it is ``analytic``: a job that asks for ``auto`` (the
+    default) or ``brep`` hashes as it did before the option existed (the engine an ``auto`` run
+    resolved to is in its checkpoint, which a resume checks: :mod:`fusioncut.runner`)."""
+    defaults = {"engine"} if job.options.engine in ("auto", "brep") else set()
     h = hashlib.sha256(job.model_dump_json(exclude={"options": set(RUN_OPTIONS) | defaults}).encode())
     files = [*job.toolpaths, *([job.tool_library] if job.tool_library else [])]
     if job.stock.kind == "file" and job.stock.path:

@@ -32,15 +32,17 @@ SWEEP_CHOICES = (SweepMethod.EXACT, SweepMethod.SAMPLED)
 
 class EngineKind(StrEnum):
     """Which engine runs the CLs: the B-Rep engine in this process or over Dask workers, or the
-    analytic engine (exact sweeps, no Booleans) in this process."""
+    analytic engine (exact sweeps, no Booleans). ``AUTO`` is only asked for: the runner resolves it
+    to ``ANALYTIC`` or ``BREP`` before a run starts (:func:`fusioncut.runner.resolve_engine`)."""
 
+    AUTO = "auto"
     BREP = "brep"
     PARALLEL_BREP = "parallel-brep"
     ANALYTIC = "analytic"
 
 
 # the engines a job may ask for (``EngineOptions.engine``); PARALLEL_BREP follows from the run options
-ENGINE_CHOICES = (EngineKind.BREP, EngineKind.ANALYTIC)
+ENGINE_CHOICES = (EngineKind.AUTO, EngineKind.BREP, EngineKind.ANALYTIC)
 
 
 def _option(default: Any, help: str) -> Any:
@@ -110,9 +112,11 @@ class EngineOptions:
     min_chip_thickness: float = _option(1e-3, (
         "A slice band whose removed material is thinner than this (mm) across the path only rubs: "
         "its arcs are no engagement and do not count in ap; 0 turns the test off."))
-    engine: EngineKind = _option(EngineKind.BREP, (
-        "Which engine computes the engagement: 'brep' (OCCT Booleans on the B-Rep IPW) or 'analytic' "
-        "(exact sweeps, no Booleans; box stock and tools of revolution only; no IPW export)."))
+    engine: EngineKind = _option(EngineKind.AUTO, (
+        "Which engine computes the engagement: 'brep' (OCCT Booleans on the B-Rep IPW), 'analytic' "
+        "(exact sweeps, no Booleans; box stock and tools of revolution only; no IPW export) or 'auto': "
+        "analytic where it applies to the whole run (box stock, every tool, exact sweeps, no IPW "
+        "export or snapshot asked), else brep; the log says which and why."))
 
     def __post_init__(self) -> None:
         self._choose("sweep", SweepMethod, SWEEP_CHOICES)

@@ -43,6 +43,7 @@ B-Rep engine's level step. Not yet here: a shank or neck of another radius than 
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import time
@@ -60,7 +61,7 @@ from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, prof
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, end_velocity, line_row
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
-from fusioncut.engines.cl_maps import CL, CutOutcome, cl_sequence, engagement_map, slice_heights
+from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.moves import ArcMove, ArcPlane, Move, Toolpath
@@ -76,6 +77,7 @@ MIN_CELL_RADII = 0.125  # down to this many tool radii wide
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 N_TOUCH = 360  # angles per height scanned for the contact's height range
 Z_TOL = 1e-10  # mm: the contact's height range
+log = logging.getLogger("fusioncut.analytic")
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
 SWEEPS = "ipw-sweeps.npz"  # the engine state; named like the B-Rep engine's IPW files so that a
 # fresh run clears it with them
@@ -105,6 +107,7 @@ class AnalyticEngine:
     _index: SweepIndex | None = field(default=None, init=False, repr=False)
     _tools: ProfileTable = field(default_factory=ProfileTable, init=False, repr=False)
     _saved_sweeps: np.ndarray | None = field(default=None, init=False, repr=False)
+    _done: list[CL] = field(default_factory=list, init=False, repr=False)  # the CLs indexed, in order (.fallback)
 
     @property
     def kind(self) -> EngineKind:
@@ -129,6 +132,7 @@ class AnalyticEngine:
         self._index = SweepIndex(self.bin_size) if self.bin_size else None
         self._tools = ProfileTable()
         self._saved_sweeps = None
+        self._done = []
 
     @property
     def ipw(self) -> None:
@@ -205,6 +209,7 @@ class AnalyticEngine:
         """Take CL ``cl`` as done without computing it: its sweep is indexed, nothing is counted."""
         profile = lower_profile(cl.tool)
         self._index_of(profile).add(*sweep_row(cl.move, profile, self._tools.index_of(profile)))
+        self._done.append(cl)
 
     def record(self, cl: CL, m: EngagementMap) -> None:
         """Take CL ``cl`` as done by another engine on the same path (a parallel worker): its sweep
@@ -227,8 +232,40 @@ class AnalyticEngine:
 
     def step(self, cl: CL) -> EngagementMap:
         """Process one CL segment (its map says ``engine="analytic"``); ``timings_ms`` holds each
-        stage's wall time and the ``total`` (ms)."""
-        return replace(self._step(cl), engine=EngineKind.ANALYTIC.value)
+        stage's wall time and the ``total`` (ms). Never raises for a CL it cannot compute: that CL
+        goes to the B-Rep engine on a local workpiece (:mod:`.fallback`, ``engine="brep"``; FAILED
+        when that fails too), and its sweep is indexed all the same, so later CLs are unaffected."""
+        t0 = time.perf_counter()
+        try:
+            m = replace(self._step(cl), engine=EngineKind.ANALYTIC.value)
+        except Exception as exc:  # noqa: BLE001 - any error of this CL's computation: the fallback's
+            m = self._fallback(cl, f"{type(exc).__name__}: {exc}")
+            timings = {**dict(m.timings_ms), "total": (time.perf_counter() - t0) * 1e3}
+            m = replace(m, timings_ms=tuple(timings.items()))
+        self._done.append(cl)
+        return m
+
+    def _fallback(self, cl: CL, why: str) -> EngagementMap:
+        """CL ``cl`` by :func:`.fallback.brep_fallback` (the analytic step raised ``why``), its sweep
+        indexed and its removed volume counted as :meth:`_step` would have."""
+        from fusioncut.engines.analytic.fallback import brep_fallback
+
+        log.warning("CL %d (%s): the analytic engine failed (%s); the B-Rep engine computes it on a local workpiece",
+                    cl.index, cl.move.source, why)
+        try:
+            profile = lower_profile(cl.tool)
+            row, box, z_low = sweep_row(cl.move, profile, self._tools.index_of(profile))
+        except Exception as exc:  # noqa: BLE001 - no sweep to index: this CL fails, the run goes on
+            return EngagementMap(**cl_base(cl), status=CLStatus.FAILED, engine=EngineKind.ANALYTIC.value,
+                                 reason=f"analytic engine: {why}; its sweep cannot be built: {exc}")
+        earlier = []
+        for e in self._done:
+            p = lower_profile(e.tool)
+            earlier.append((e, sweep_row(e.move, p, self._tools.index_of(p))[1]))
+        m = brep_fallback(cl, box, earlier, self.stock, self.options, why)
+        self._index_of(profile).add(row, box, z_low)
+        self.removed_total += m.removed_volume
+        return m
 
     def _step(self, cl: CL) -> EngagementMap:
         move, tool = cl.move, cl.tool
@@ -284,10 +321,10 @@ class AnalyticEngine:
                                  method=SweepMethod.EXACT, timings=timings, z_range=z_range,
                                  band_volumes=band_volumes if len(edges) else None, flute_area=flute_area,
                                  shank_area=shank_area)
-        index.add(row, box, z_low)
-        self.removed_total += removed
         m = engagement_map(cl, outcome, heights, arcs, self.options.slice_height,
                            self.options.min_chip_thickness)
+        index.add(row, box, z_low)  # the state changes last: a step that raised left it as it was
+        self.removed_total += removed
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))
 
