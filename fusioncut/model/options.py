@@ -112,6 +112,10 @@ class EngineOptions:
     min_chip_thickness: float = _option(1e-3, (
         "A slice band whose removed material is thinner than this (mm) across the path only rubs: "
         "its arcs are no engagement and do not count in ap; 0 turns the test off."))
+    kernel_budget_s: float | None = _option(60.0, (
+        "Wall time (s) a CL's 3D Booleans may take in the B-Rep engine: they run in a child process "
+        "that is killed past it, the CL is FAILED with its shapes saved and the workpiece kept as "
+        "before it; None runs them in this process, unbounded and deaf to Ctrl-C."))
     engine: EngineKind = _option(EngineKind.AUTO, (
         "Which engine computes the engagement: 'brep' (OCCT Booleans on the B-Rep IPW), 'analytic' "
         "(exact sweeps, no Booleans; box stock and tools of revolution only; no IPW export) or 'auto': "

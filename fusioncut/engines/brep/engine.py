@@ -43,9 +43,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import NamedTuple
 
-from OCP.TopoDS import TopoDS, TopoDS_Shape
+from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
+from fusioncut.engines.brep.budget import Deadline, KernelBudgetExceeded, stop_worker
 from fusioncut.engines.brep.cells import (
     Cell, ClearedTool, Square, column_clear_of, quarter_cells, reach_box, smallest_square, split_into_cells,
     starts_cleared,
@@ -54,8 +55,7 @@ from fusioncut.engines.brep.checkpoint import EngineState, load_checkpoint, save
 from fusioncut.engines.brep.contact import ContactFace, arc_contacts, find_contact_faces, slice_intervals
 from fusioncut.engines.brep.layers import CuttingRegion, StackCut, contact_patches, cut_stack, outline_faces
 from fusioncut.engines.brep.occ import (
-    bounding_box, boxes_overlap, compound, count_faces, face_map, faces, on_old_boundary, pieces,
-    unify, volume, write_brep,
+    bounding_box, boxes_overlap, compound, count_faces, unify, volume, write_brep,
 )
 from fusioncut.engines.brep.solid_cut import SolidCut, SolidCutter, end_probes
 from fusioncut.engines.brep.stock import stock_solid
@@ -115,7 +115,8 @@ class BRepEngine:
         return False
 
     def close(self) -> None:
-        """Nothing is held outside this process."""
+        """End the kernel's child process, if one runs (:mod:`~fusioncut.engines.brep.budget`)."""
+        stop_worker()
 
     def start(self, stock: Stock | TopoDS_Shape) -> None:
         solid = stock if isinstance(stock, TopoDS_Shape) else stock_solid(stock)
@@ -152,8 +153,11 @@ class BRepEngine:
         The CLs before ``start_at`` are taken as done (a resumed run whose IPW comes from
         :meth:`load_checkpoint`); they only carry the feed direction forward.
         """
-        for cl in cl_sequence(toolpath, self.options, default_tool, start_at):
-            yield self.step(*cl)
+        try:
+            for cl in cl_sequence(toolpath, self.options, default_tool, start_at):
+                yield self.step(*cl)
+        finally:
+            stop_worker()
 
     def save_checkpoint(self, folder: Path, next_cl: int) -> None:
         """Write the engine state atomically into ``folder`` (:mod:`~fusioncut.engines.brep.checkpoint`).
@@ -218,6 +222,7 @@ class BRepEngine:
         index, move, tool, feed_angle = cl
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
+        deadline = Deadline(self.options.kernel_budget_s)
         seam = math.radians(feed_angle) + math.pi  # seams behind the tool, away from the engaged side
         # a piece of a ramp or helix is swept as a step (see fusioncut.engines.segments); the
         # published method's sampled copies follow the move itself
@@ -272,8 +277,14 @@ class BRepEngine:
                 return swept_volume(tool, motion, self.options.sweep, seam + turn, start_left_out)
 
             try:
-                results, sweep = self._solid_cutter().cut_with_retries(
+                results, sweep = self._solid_cutter(deadline).cut_with_retries(
                     touched, sweep, end_probes(motion, tool), resweep, open_start, as_layers)
+            except KernelBudgetExceeded as exc:
+                saved = self._save_failure(index, sweep.shape)
+                log.error("CL %d (%s): %s; shapes saved to %s", index, move.source, exc, saved)
+                return CutOutcome(CLStatus.FAILED, method=method, timings=timings,
+                                  reason=f"CL {index}: {exc}; the workpiece is kept as before the CL; "
+                                         f"shapes saved to {saved}"), []
             except BooleanFailure as exc:
                 saved = self._save_failure(index, sweep.shape)
                 log.error("CL %d (%s): Boolean failed: %s; shapes saved to %s", index, move.source, exc, saved)
@@ -354,16 +365,7 @@ class BRepEngine:
         sweep's faces that the solid cells' splits put on the new material and not on the old."""
         end = cl.move.end
         arcs = [p for r in layered for p in contact_patches(r.cut.cuts, end[:2], region.radius)]
-        candidates = []
-        if results:
-            sweep_faces = list(faces(sweep.shape))
-            own = face_map(sweep.shape)
-        for r in results:
-            kept = face_map(r.shape)  # the split also holds the sweep's pieces out of the IPW
-            origins = r.split.Origins()
-            for f in sweep_faces:
-                candidates.extend(g for g in map(TopoDS.Face, pieces(r.split, f))
-                                  if kept.Contains(g) and not on_old_boundary(g, origins, own))
+        candidates = [f for r in results for f in r.contact_candidates(sweep.shape)]
         return arc_contacts(arcs, cl.tool, end) + find_contact_faces(candidates, cl.tool, end)
 
     def _material_ceiling(self) -> MaterialCeiling | None:
@@ -379,10 +381,11 @@ class BRepEngine:
                 max(b[1][2] for b in boxes), self.options.ceiling_pixel)
         return self._ceiling
 
-    def _solid_cutter(self) -> SolidCutter:
-        """The 3D Booleans of one CL with this engine's cells and options."""
+    def _solid_cutter(self, deadline: Deadline | None = None) -> SolidCutter:
+        """The 3D Booleans of one CL with this engine's cells and options (``deadline``: the CL's
+        kernel budget; None: none, the Booleans run in this process, as a test calling it wants)."""
         return SolidCutter(self.cells, (self._first_fuzzy, *self.options.fuzzy_retries), self.options.kernel_threads,
-                           self.stock_volume)
+                           self.stock_volume, deadline or Deadline(None))
 
     @staticmethod
     def _cutting_region(motion: Move, tool: MillingTool, open_start: bool = False) -> CuttingRegion | None:

@@ -17,6 +17,18 @@ The ladder, each step tried when the one before failed (:meth:`SolidCutter.cut_w
    (:meth:`SolidCutter.subtract_joined`): a cell's walls are where the grid put them, not the part's.
 
 When every step fails the engine reports the CL FAILED and saves both shapes.
+
+**Time budget** (``EngineOptions.kernel_budget_s``, :mod:`~fusioncut.engines.brep.budget`): with a
+budget, each cell's :meth:`SolidCutter.subtract` (the intersections, the split, and the checks, for
+every fuzzy value) runs in a killable child process, which sends back the volume removed, the new
+material as binary BRep and the contact candidates (the sweep's faces that the split put on the new
+material and not on the old boundary, found there from the split's history, which does not cross a
+process boundary). All guarded calls of one CL share one :class:`~fusioncut.engines.brep.budget.Deadline`.
+A call past it is killed and :class:`~fusioncut.engines.brep.budget.KernelBudgetExceeded` goes
+straight out of the ladder (no step is retried: it would hang again). Since no cell is changed
+before all are cut, the workpiece after such a CL is the one before it, as after any failed CL.
+Unguarded, in the process: the joined-cell ladder step's fuse, face merge and split back
+(:meth:`SolidCutter.subtract_joined`; its Booleans with the sweep are guarded).
 """
 from __future__ import annotations
 
@@ -28,10 +40,14 @@ from typing import NamedTuple
 from OCP.TopAbs import TopAbs_SOLID
 from OCP.TopoDS import TopoDS_Shape
 
+from OCP.TopAbs import TopAbs_Orientation
+from OCP.TopoDS import TopoDS, TopoDS_Face
+
+from fusioncut.engines.brep.budget import Deadline, KernelBudgetExceeded, guarded, shape_bytes, shape_from_bytes
 from fusioncut.engines.brep.cells import Cell, halves, neighbours
 from fusioncut.engines.brep.occ import (
-    Vec3, compound, fuse_all, intersections, split_pieces, strictly_inside, unify, volume, volume_change,
-    without_slivers,
+    Vec3, compound, face_map, faces, fuse_all, intersections, on_old_boundary, pieces, split_pieces,
+    strictly_inside, unify, volume, volume_change, without_slivers,
 )
 from fusioncut.engines.brep.sweep import SweptVolume
 from fusioncut.engines.ceiling import tool_radii
@@ -40,16 +56,30 @@ from fusioncut.errors import BooleanFailure
 from fusioncut.model.moves import Move
 from fusioncut.model.tools import MillingTool
 
-__all__ = ["BooleanFailure", "CellPart", "SolidCut", "SolidCutter", "Subtraction", "end_probes"]
+__all__ = ["BooleanFailure", "CellPart", "SolidCut", "SolidCutter", "Subtraction", "contact_candidates",
+           "end_probes"]
 
 
 class Subtraction(NamedTuple):
     """One accepted Boolean: the volume removed (mm³), the new material (None when nothing was
-    removed) and the split with its history (None when nothing was removed)."""
+    removed) and the split with its history (None when nothing was removed, or when the Boolean ran
+    in a child process: then ``candidates`` holds the contact candidates found there)."""
 
     removed: float
     shape: TopoDS_Shape | None
     split: object | None
+    candidates: list[TopoDS_Face] | None = None
+
+
+def contact_candidates(split, new: TopoDS_Shape, sweep: TopoDS_Shape) -> list[TopoDS_Face]:
+    """The faces of the sweep that the split ``split`` put on the new material ``new`` and that do
+    not lie on the workpiece's old boundary (:func:`~fusioncut.engines.brep.occ.on_old_boundary`)."""
+    kept, own, origins = face_map(new), face_map(sweep), split.Origins()
+    out = []
+    for f in faces(sweep):
+        out.extend(g for g in map(TopoDS.Face, pieces(split, f))
+                   if kept.Contains(g) and not on_old_boundary(g, origins, own))
+    return out
 
 
 class CellPart(NamedTuple):
@@ -69,6 +99,13 @@ class SolidCut:
     removed: float
     shape: TopoDS_Shape | None
     split: object | None
+    candidates: list[TopoDS_Face] | None = None
+
+    def contact_candidates(self, sweep: TopoDS_Shape) -> list[TopoDS_Face]:
+        """:func:`contact_candidates` of this cut with ``sweep`` (found in the child when it ran there)."""
+        if self.candidates is not None:
+            return self.candidates
+        return [] if self.shape is None else contact_candidates(self.split, self.shape, sweep)
 
 
 def end_probes(motion: Move, tool: MillingTool) -> tuple[Vec3, ...]:
@@ -91,15 +128,19 @@ class SolidCutter:
     """The 3D Booleans of one CL with the cells of ``grid`` (mm, mm³).
 
     ``fuzzy_values``: the first fuzzy value and the retries, in order; ``threads``: the kernel's own
-    threads; ``stock_volume``: the scale of "nothing removed".
+    threads (not in a guarded call's child: see :mod:`~fusioncut.engines.brep.budget`);
+    ``stock_volume``: the scale of "nothing removed"; ``deadline``: the CL's kernel budget.
     """
 
     grid: list[Cell]
     fuzzy_values: tuple[float, ...]
     threads: bool
     stock_volume: float
+    deadline: Deadline = field(default_factory=lambda: Deadline(None))
     # the sweep whose volume was integrated last, and that volume: once for all the cells a CL cuts
     _sweep_volume: tuple[TopoDS_Shape, float] | None = field(default=None, init=False, repr=False)
+    # the sweep last sent to the kernel's child, as binary BRep: once for all the cells a CL cuts
+    _sweep_bytes: tuple[TopoDS_Shape, bytes] | None = field(default=None, init=False, repr=False)
 
     def cut_with_retries(self, cells: list[Cell], sweep: SweptVolume, probes: tuple[Vec3, ...],
                          resweep: Callable[[float, bool], SweptVolume], open_start: bool,
@@ -107,7 +148,8 @@ class SolidCutter:
         """The Booleans of ``cells`` with ``sweep``, climbing the module's ladder; the cuts and the
         sweep they were made with. ``resweep(turn, open_start)`` builds the sweep again with its
         seams ``turn`` rad on; a cell is never joined with one of ``not_joined`` (cut as layers).
-        Raises :class:`BooleanFailure` when every step fails."""
+        Raises :class:`BooleanFailure` when every step fails, :class:`KernelBudgetExceeded` as soon
+        as one runs past the CL's budget."""
         try:
             return self.cut_cells(cells, sweep.shape, probes), sweep
         except BooleanFailure:
@@ -116,6 +158,8 @@ class SolidCutter:
             try:
                 other = resweep(turn, start_left_out)
                 results = self.cut_cells(cells, other.shape, probes)
+            except KernelBudgetExceeded:
+                raise
             except Exception:  # noqa: BLE001 - a sweep not built, or its Booleans failed too
                 continue
             return results, replace(other, method=sweep.method)
@@ -134,7 +178,7 @@ class SolidCutter:
             if id(c) in joined:
                 continue
             try:
-                removed, new, split = self.subtract(c.shape, sweep, c.volume, probes)
+                sub = self.subtract(c.shape, sweep, c.volume, probes)
             except BooleanFailure:
                 if join_avoiding is None:
                     raise
@@ -144,7 +188,7 @@ class SolidCutter:
                 out = [r for r in out if not any(id(p.cell) in joined for p in r.parts)]
                 out.append(cut)
                 continue
-            out.append(SolidCut([CellPart(c, new, c.volume - removed)], removed, new, split))
+            out.append(SolidCut([CellPart(c, sub.shape, c.volume - sub.removed)], *sub))
         return out
 
     def subtract_joined(self, cell: Cell, sweep: TopoDS_Shape, probes: tuple[Vec3, ...], busy: set[int]) -> SolidCut:
@@ -165,7 +209,8 @@ class SolidCutter:
                 continue
             try:
                 joint = unify(fuse_all([cell.shape, n.shape]), cell.volume + n.volume)
-                removed, new, split = self.subtract(joint, sweep, cell.volume + n.volume, probes)
+                sub = self.subtract(joint, sweep, cell.volume + n.volume, probes)
+                new = sub.shape
                 if new is None:
                     return SolidCut([], 0.0, None, None)
                 below, above = halves(new, axis, at)
@@ -178,7 +223,7 @@ class SolidCutter:
             if abs(v_mine + v_theirs - volume(new)) > tol or v_mine > cell.volume + tol or v_theirs > n.volume + tol:
                 last = f"joined with the cell at {n.square}: the parts split back do not hold its volume"
                 continue
-            return SolidCut([CellPart(cell, mine, v_mine), CellPart(n, theirs, v_theirs)], removed, new, split)
+            return SolidCut([CellPart(cell, mine, v_mine), CellPart(n, theirs, v_theirs)], *sub)
         raise BooleanFailure(f"{last} (the cell alone failed)")
 
     def sweep_volume(self, sweep: TopoDS_Shape) -> float:
@@ -189,6 +234,26 @@ class SolidCutter:
 
     def subtract(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float,
                  probes: tuple[Vec3, ...] = ()) -> Subtraction:
+        """:meth:`subtract_here`, in a killable child when the CL has a budget (see the module)."""
+        if not self.deadline.guards:
+            return self.subtract_here(ipw, sweep, ipw_volume, probes)
+
+        if self._sweep_bytes is None or not self._sweep_bytes[0].IsSame(sweep):
+            self._sweep_bytes = (sweep, shape_bytes(sweep))
+        removed, data, found, swept = guarded(
+            _subtract_in_child, (shape_bytes(ipw), self._sweep_bytes[1], ipw_volume, probes, self.fuzzy_values,
+                                 self.stock_volume), self.deadline, "the Boolean of a cell with the sweep")
+        if swept is not None:
+            self._sweep_volume = (sweep, swept)
+        if data is None:
+            return Subtraction(removed, None, None)
+        new = shape_from_bytes(data)
+        index = face_map(new)
+        candidates = [TopoDS.Face(index.FindKey(i).Oriented(TopAbs_Orientation(o))) for i, o in found]
+        return Subtraction(removed, new, None, candidates)
+
+    def subtract_here(self, ipw: TopoDS_Shape, sweep: TopoDS_Shape, ipw_volume: float,
+                      probes: tuple[Vec3, ...] = ()) -> Subtraction:
         """``ipw`` minus ``sweep``, tried with each fuzzy value until a result passes the checks.
 
         The pieces inside and outside the sweep must add up to the old IPW (old volume − new volume
@@ -235,3 +300,20 @@ class SolidCutter:
                 continue
             return Subtraction(removed, without_slivers(ipw, new), op)
         raise BooleanFailure(last)
+
+
+def _subtract_in_child(ipw: bytes, sweep: bytes, ipw_volume: float, probes: tuple[Vec3, ...],
+                       fuzzy_values: tuple[float, ...], stock_volume: float) -> tuple:
+    """:meth:`SolidCutter.subtract_here` in the kernel's child, on one thread (see
+    :mod:`~fusioncut.engines.brep.budget`): the volume removed, the new material as binary BRep and
+    its contact candidates as (index in its face map, orientation), and the sweep's volume when it
+    was integrated (None: all three None when nothing was removed)."""
+    cutter = SolidCutter([], fuzzy_values, False, stock_volume)
+    ipw_shape, sweep_shape = shape_from_bytes(ipw), shape_from_bytes(sweep)
+    sub = cutter.subtract_here(ipw_shape, sweep_shape, ipw_volume, probes)
+    swept = cutter._sweep_volume[1] if cutter._sweep_volume is not None else None
+    if sub.shape is None:
+        return sub.removed, None, None, swept
+    index = face_map(sub.shape)
+    found = [(index.FindIndex(f), int(f.Orientation())) for f in contact_candidates(sub.split, sub.shape, sweep_shape)]
+    return sub.removed, shape_bytes(sub.shape), found, swept
