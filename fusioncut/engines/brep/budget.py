@@ -100,7 +100,7 @@ class Deadline:
 
 
 def in_child() -> bool:
-    """Whether this process is a guarded call's child."""
+    """Whether this process is the kernel's child."""
     return _IN_CHILD
 
 
@@ -300,7 +300,7 @@ def _die_with_parent() -> None:
 
 
 def _libc():
-    """The C library, loaded here in the parent (loading it in each child cost ~15 ms a call)."""
+    """The C library, loaded once here in the parent, not by each child after its fork."""
     try:
         import ctypes
 

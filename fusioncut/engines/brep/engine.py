@@ -28,6 +28,10 @@ The rooms it sends a CL through:
 * :mod:`~fusioncut.engines.brep.solid_cut`: the 3D Booleans of the solid cells, their checks and
   their ladder of retries. A CL that fails them all is reported FAILED with the reason, both shapes
   are written as .brep for reproduction, the IPW stays as it was and the run goes on.
+* :mod:`~fusioncut.engines.brep.budget`: those Booleans run in a killable child process, so a CL
+  whose Booleans run past ``EngineOptions.kernel_budget_s`` is FAILED the same way (the budget and
+  the CL named) and Ctrl-C stops the run at once; the child ends with the run (:meth:`close`, and
+  when :meth:`process` ends).
 * :mod:`~fusioncut.engines.brep.checkpoint`: the state on disk.
 * :mod:`fusioncut.engines.cl_maps`: the kernel-free assembly of the CL's map.
 
@@ -64,7 +68,7 @@ from fusioncut.engines.ceiling import MaterialCeiling, SweepFootprint, footprint
 from fusioncut.engines.chip import band_volumes
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
 from fusioncut.engines.segments import step_motion
-from fusioncut.errors import BooleanFailure, RegionCutFailure
+from fusioncut.errors import BooleanFailure, InputError, RegionCutFailure
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.moves import Move, Toolpath
 from fusioncut.model.stock import Stock
@@ -102,6 +106,10 @@ class BRepEngine:
     cleared: ClearedTool | None = field(default=None, init=False)
 
     def __post_init__(self) -> None:
+        budget = self.options.kernel_budget_s
+        if budget is not None and not 0.0 < budget < math.inf:
+            raise InputError(f"options.kernel_budget_s: {budget!r} s is not a positive number of seconds "
+                             "(None: no budget)")
         if self.options.ceiling_pixel is not None and self.options.exact:
             load_kernels()  # here, not in the first CL's time
 
