@@ -11,7 +11,7 @@ A tiny job, a 10 mm flat end mill slotting a block 3 mm deep along x (the G-code
     ...                   options=fc.EngineOptions(slice_height=1.0, max_segment_length=10.0))
     >>> engaged = [m for m in run if m.status == fc.CLStatus.ENGAGED]
     >>> m = engaged[2]  # x 20 -> 30, mid-slot: the tool cuts across its whole width
-    >>> [(s.intervals[0].entry, s.intervals[0].exit) for s in m.engaged_slices]
+    >>> [(round(s.intervals[0].entry, 6), round(s.intervals[0].exit, 6)) for s in m.engaged_slices]
     [(0.0, 180.0), (0.0, 180.0), (0.0, 180.0)]
     >>> round(m.ap, 6), round(m.ae, 6)
     (3.0, 10.0)

@@ -49,6 +49,9 @@ TIME_COLUMNS = ["time_ms"]
 
 
 def small_job(tmp_path: Path, program: str = PROGRAM, **options) -> tuple[Job, Path]:
+    """The small job, run by the B-Rep engine unless ``engine`` is given: these runner tests read
+    its checkpoints, cells and failure shapes (the analytic engine's runs: test_runner_analytic)."""
+    options = {"engine": "brep", **options}
     base = tmp_path / "job"
     base.mkdir(exist_ok=True)
     (base / "prog.nc").write_text(program)
@@ -231,7 +234,7 @@ def test_run_options_do_not_break_a_resume(tmp_path):
             raise KeyboardInterrupt
 
     run_job(job, base, out, on_cl=stop, export_ipw=False)
-    other = job.model_copy(update={"options": Options(max_segment_length=3.0, checkpoint_every=50)})
+    other = job.model_copy(update={"options": Options(max_segment_length=3.0, checkpoint_every=50, engine="brep")})
     assert run_job(other, base, out, export_ipw=False).resumed_from == 6
 
 

@@ -57,6 +57,7 @@ def small_job_file(tmp_path: Path, **kwargs) -> Path:
     path = _small_job_file(tmp_path, **kwargs)
     doc = json.loads(path.read_text())
     doc["options"]["cell_size"] = None
+    doc["options"].setdefault("engine", "brep")  # the parallel B-Rep engine's cells are what these tests are about
     path.write_text(json.dumps(doc))
     return path
 

@@ -176,6 +176,6 @@ def _immersion(start: float, span: float, feed_angle: float, spindle: SpindleDir
     # the teeth of a clockwise spindle meet the counter-clockwise end of the arc first
     first = a + w if spindle == SpindleDirection.CW else a
     entry = immersion_from_machine(first, feed_angle, spindle)
-    if abs(entry - 360.0) < 1e-9:
+    if abs(entry - 360.0) < 1e-7:  # 0 by another name; the analytic engine's arc ends are found to 1e-10 rad
         entry = 0.0
     return entry, entry + w
