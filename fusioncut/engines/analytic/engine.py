@@ -57,7 +57,8 @@ from fusioncut.engines.analytic.area import contact_area
 from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, front_limits, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
-from fusioncut.engines.analytic.profile import LowerProfile, lower_profile, profile_radius, profile_radius_slope
+from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_radius,
+                                               profile_radius_slope)
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, end_velocity, line_row
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
@@ -426,10 +427,10 @@ def tiles(x0: float, y0: float, x1: float, y1: float, size: float) -> list[tuple
 
 
 def _break_radii(row: np.ndarray, pieces: np.ndarray, levels: tuple[float, float]) -> tuple[float, ...]:
-    """Radii (mm) about a sweep's path where its lower surface jumps or bends: R and the inner piece
-    ends; for a level sweep also where it crosses the heights ``levels`` (the stock's bottom and top),
-    where the removed height bends."""
-    out = [float(d) for d in pieces[:, 2] if d > 0]
+    """Radii (mm) about a sweep's path where its lower surface jumps or bends: R and the profile's
+    corners (:func:`.profile.corner_radii`); for a level sweep also where it crosses the heights
+    ``levels`` (the stock's bottom and top), where the removed height bends."""
+    out = list(corner_radii(pieces))
     if row[3] == row[6]:
         for level in levels:
             r = profile_radius(pieces, level - row[3])

@@ -96,6 +96,30 @@ def lower_profile(tool: MillingTool) -> LowerProfile:
     return out
 
 
+def _piece_slope(piece: np.ndarray, d: float) -> float:
+    """The slope of one piece's ``f`` at ``d`` (inf where an arc stands vertical)."""
+    if piece[0] == LINE:
+        return float(piece[4])
+    u = d - piece[3]
+    s = piece[5] * piece[5] - u * u
+    return u / math.sqrt(s) if s > 0.0 else math.inf
+
+
+def corner_radii(pieces: np.ndarray, tol: float = 1e-9) -> tuple[float, ...]:
+    """The radii (mm) where ``f`` has a corner (its slope jumps by more than ``tol``: a chamfer's flat
+    tip meeting its cone, a drill's point) and ``R``, the footprint's edge: where a sweep's lower
+    surface bends or ends. Joints where two pieces meet tangentially (a bull-nose's flat and corner,
+    an APT cutter's corner and side) are left out: ``f`` is continuously differentiable there and
+    only its curvature jumps, which the integrals' adaptive rules take in their stride."""
+    out = []
+    for i in range(pieces.shape[0] - 1):
+        d = float(pieces[i, 2])
+        if d > 0 and abs(_piece_slope(pieces[i + 1], d) - _piece_slope(pieces[i], d)) > tol:
+            out.append(d)
+    out.append(float(pieces[-1, 2]))
+    return tuple(out)
+
+
 @njit(cache=True)
 def profile_height(P, d):
     """f(d): height (mm above the tip) of the tool's lowest point at radial distance ``d``; d beyond

@@ -17,9 +17,10 @@ convex, ``f`` convex and non-decreasing), so its minimum is bracketed by the sig
 derivative ``g`` and the bracket ``[lo, hi]`` is shrunk (Illinois steps on ``g``, every third step a
 bisection) until convexity bounds the value's error, ``min(-g(lo), g(hi)) (hi - lo)``, by
 :data:`VALUE_TOL` (closed forms where the derivative keeps a sign, a flat end mill's ramps, and on
-level moves: there the lowest tool is the one nearest ``p``). On an arc the points within ``R``
+level moves: there the lowest tool is the one nearest ``p``; a ball's minimum inside the bracket is
+its envelope cylinder's lowest point). On an arc the points within ``R``
 form windows of angle around the direction of ``p``; each window is sampled at :data:`ARC_STEP`
-rad at most and every sampled local minimum is refined by golden section to ~1e-14 in ``t``: minima
+rad at most and every sampled local minimum is refined by Brent's method to 1e-10 of its bracket: minima
 closer together than the step could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``.
 
 ``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
@@ -42,7 +43,8 @@ ARC_STEP = 0.05  # rad: the arc windows' sampling step
 _GOLDEN = 0.6180339887498949
 _BISECTIONS = 64
 VALUE_TOL = 1e-13  # mm: the error bound of a line sweep's lower surface (module docstring)
-_GOLDEN_STEPS = 72
+_BRENT_STEPS = 100  # a bound only: Brent's golden steps alone reach T_TOL in under 50
+T_TOL = 1e-10  # the arc windows' minima: the bracket's final width relative to its first
 
 
 def line_row(start, end, tool: int) -> np.ndarray:
@@ -113,6 +115,19 @@ def line_lower(S, P, R, px, py, eps):
         return _line_value(S, P, R, px, py, lo)
     if _line_slope(S, P, R, px, py, hi) <= 0.0:
         return _line_value(S, P, R, px, py, hi)
+    if P.shape[0] == 1 and P[0, 0] == 1.0 and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R:
+        # a ball: the minimum inside (lo, hi) lies on the swept sphere's envelope, the cylinder of
+        # radius R about the centres' line, whose lowest point above p is below the centre over p's
+        # foot on the path by W sqrt(1 + uz^2 / uu), W^2 = R^2 - (p's XY distance from the path)^2,
+        # at t = b - uz W / sqrt(uu (uu + uz^2))
+        uz = S[6] - S[3]
+        cross = qx * uy - qy * ux
+        w2 = R * R - cross * cross / uu
+        if w2 >= 0.0:
+            w = math.sqrt(w2)
+            t = b - uz * w / math.sqrt(uu * (uu + uz * uz))
+            if lo <= t <= hi:
+                return S[3] + R + b * uz - w * math.sqrt(1.0 + uz * uz / uu)
     return _convex_min(S, P, R, px, py, lo, hi)
 
 
@@ -167,8 +182,63 @@ def _arc_value(mode, S, P, R, px, py, pz, t):
 
 
 @njit(cache=True)
+def _bracket_min(mode, S, P, R, px, py, pz, a, x, b, fx):
+    """The least value of :func:`_arc_value` found by Brent's minimisation in [a, b] from its sampled
+    lowest point ``x`` (value ``fx``): parabolic steps through the three best points, golden-section
+    steps where a parabola's step would not shrink the bracket fast enough, until the bracket is
+    :data:`T_TOL` (relative to its width at the start) around the best point. Near a smooth minimum
+    the value's error is quadratic in that, far below 1e-20 mm; where the value has a corner (a flat
+    bottom's edge, the footprint's rim) the golden steps converge linearly on it."""
+    tol = T_TOL * (b - a) + 1e-300
+    w = v = x
+    fw = fv = fx
+    d = e = 0.0
+    for _ in range(_BRENT_STEPS):
+        m = 0.5 * (a + b)
+        if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):
+            break
+        golden = True
+        if abs(e) > tol:
+            r = (x - w) * (fx - fv)
+            q = (x - v) * (fx - fw)
+            p = (x - v) * q - (x - w) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            q = abs(q)
+            if abs(p) < abs(0.5 * q * e) and p > q * (a - x) and p < q * (b - x):
+                e, d = d, p / q
+                golden = False
+                u = x + d
+                if u - a < 2.0 * tol or b - u < 2.0 * tol:
+                    d = tol if x < m else -tol
+        if golden:
+            e = (a - x) if x >= m else (b - x)
+            d = (1.0 - _GOLDEN) * e
+        u = x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
+        fu = _arc_value(mode, S, P, R, px, py, pz, u)
+        if fu <= fx:
+            if u >= x:
+                a = x
+            else:
+                b = x
+            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
+        else:
+            if u < x:
+                a = u
+            else:
+                b = u
+            if fu <= fw or w == x:
+                v, fv, w, fw = w, fw, u, fu
+            elif fu <= fv or v == x or v == w:
+                v, fv = u, fu
+    return fx
+
+
+@njit(cache=True)
 def _window_min(mode, S, P, R, px, py, pz, t0, t1):
-    """Least value of :func:`_arc_value` over [t0, t1]: sampled, every local minimum refined."""
+    """Least value of :func:`_arc_value` over [t0, t1]: sampled, every local minimum refined
+    (:func:`_bracket_min`)."""
     span = abs(t1 - t0) * abs(S[11])
     n = max(4, int(math.ceil(span / ARC_STEP)))
     ts = np.empty(n + 1)
@@ -180,22 +250,7 @@ def _window_min(mode, S, P, R, px, py, pz, t0, t1):
     for i in range(n + 1):
         if (i > 0 and vs[i] > vs[i - 1]) or (i < n and vs[i] > vs[i + 1]):
             continue
-        a = ts[max(i - 1, 0)]
-        b = ts[min(i + 1, n)]
-        c = b - _GOLDEN * (b - a)
-        d = a + _GOLDEN * (b - a)
-        fc = _arc_value(mode, S, P, R, px, py, pz, c)
-        fd = _arc_value(mode, S, P, R, px, py, pz, d)
-        for _ in range(_GOLDEN_STEPS):
-            if fc <= fd:
-                b, d, fd = d, c, fc
-                c = b - _GOLDEN * (b - a)
-                fc = _arc_value(mode, S, P, R, px, py, pz, c)
-            else:
-                a, c, fc = c, d, fd
-                d = a + _GOLDEN * (b - a)
-                fd = _arc_value(mode, S, P, R, px, py, pz, d)
-        best = min(best, fc, fd)
+        best = min(best, _bracket_min(mode, S, P, R, px, py, pz, ts[max(i - 1, 0)], ts[i], ts[min(i + 1, n)], vs[i]))
     return best
 
 

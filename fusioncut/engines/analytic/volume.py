@@ -98,14 +98,93 @@ def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 
 @njit(cache=True)
-def _with_kinks(x, pts, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+def _gap(x, y, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """Where the state changes from ``s0`` to ``s1`` (:func:`_state`), the two surfaces that cross
+    there: their difference at (x, y), mm, of one sign on ``s0``'s side and the other on ``s1``'s.
+    Into or out of nothing removed: min(h, top) - max(L, bottom) with ``h`` the state's own cause;
+    another sweep gives ``h``: the two causes' heights (the top for -1); ``L`` passes the bottom:
+    ``L`` - bottom. NaN where the change is of another kind."""
+    if s0 == 0 or s1 == 0:
+        c = (max(s0, s1) - 3) // 2
+        k = int(C[c, 12]) if c >= 0 else 0
+        h = sweep_lower(C[c], PP[k, :NPC[k]], RR[k], x, y, 0.0) if c >= 0 else zt
+        return min(h, zt) - max(sweep_lower(S, P, R, x, y, 0.0), zb)
+    c0, c1 = (s0 - 3) // 2, (s1 - 3) // 2
+    if c0 != c1 and (s0 - 3) % 2 == (s1 - 3) % 2:
+        h0, h1 = zt, zt
+        if c0 >= 0:
+            k = int(C[c0, 12])
+            h0 = sweep_lower(C[c0], PP[k, :NPC[k]], RR[k], x, y, 0.0)
+        if c1 >= 0:
+            k = int(C[c1, 12])
+            h1 = sweep_lower(C[c1], PP[k, :NPC[k]], RR[k], x, y, 0.0)
+        return h0 - h1
+    if c0 == c1:
+        return sweep_lower(S, P, R, x, y, 0.0) - zb
+    return math.nan
+
+
+@njit(cache=True)
+def _kink(x, lo, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """The place (mm along the line at ``x``, to :data:`KINK_TOL`) in [lo, hi] where the state
+    changes from ``s0`` (at ``lo``) to ``s1`` (at ``hi``). The two surfaces that cross there
+    (:func:`_gap`) are smooth, so their difference's root is found by Illinois steps (every fourth a
+    bisection); the root counts where the states just beside it are ``s0`` and ``s1``. Else (a third
+    surface in between, a change of two kinds at once) the states are bisected."""
+    g0 = _gap(x, lo, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    g1 = _gap(x, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    if math.isfinite(g0) and math.isfinite(g1) and g0 * g1 < 0.0:
+        a, b, fa, fb = lo, hi, g0, g1
+        side = 0
+        for i in range(200):
+            if b - a <= KINK_TOL:
+                break
+            m = 0.5 * (a + b) if i % 4 == 3 else (a * fb - b * fa) / (fb - fa)
+            if not a < m < b:
+                m = 0.5 * (a + b)
+            fm = _gap(x, m, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            if not math.isfinite(fm):
+                break
+            if fm == 0.0:
+                a = b = m
+                break
+            if (fm < 0.0) == (fa < 0.0):
+                a, fa = m, fm
+                if side == 1:
+                    fb *= 0.5
+                side = 1
+            else:
+                b, fb = m, fm
+                if side == -1:
+                    fa *= 0.5
+                side = -1
+        y = 0.5 * (a + b)
+        if (b - a <= KINK_TOL and _state(x, max(y - KINK_TOL, lo), S, P, R, C, CB, PP, NPC, RR, zb, zt) == s0
+                and _state(x, min(y + KINK_TOL, hi), S, P, R, C, CB, PP, NPC, RR, zb, zt) == s1):
+            return y
+    while hi - lo > KINK_TOL:
+        m = 0.5 * (lo + hi)
+        if _state(x, m, S, P, R, C, CB, PP, NPC, RR, zb, zt) == s0:
+            lo = m
+        else:
+            hi = m
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True)
+def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """(``pts`` with the kinks of the removed height along the line at ``x`` added, and per stretch
     between them whether anything may be removed there). A stretch :func:`_nothing_removed` proves
     empty is kept whole; in the others :func:`_state` is probed at :data:`N_PROBE` + 1 even samples
-    and each change bisected to :data:`KINK_TOL` mm. A kink left inside a stretch costs the adaptive
-    rule many halvings."""
+    and each change located (:func:`_kink`). A kink left inside a stretch costs the adaptive rule
+    a split at it (:func:`inner_integral`).
+
+    A break point between two stretches probed in one and the same state is dropped where its curve
+    (``owners``, as :func:`_crossings_at_x` gives them) is neither the CL's own sweep's nor that of
+    the sweep giving ``h`` there: the removed height is then smooth across it."""
     out = [pts[0]]
     live = []
+    last = -1  # the state all probes of the last stretch had (-1: none, or a change within it)
     for p in range(pts.shape[0] - 1):
         a, b = pts[p], pts[p + 1]
         if b - a <= 0.0:
@@ -113,26 +192,28 @@ def _with_kinks(x, pts, S, P, R, C, CB, PP, NPC, RR, zb, zt):
         if _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             out.append(b)
             live.append(False)
+            last = -1
             continue
+        uniform = -1
         if b - a > 4 * KINK_TOL:
             prev_y = a + KINK_TOL
             prev = _state(x, prev_y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            uniform = prev
             for i in range(1, N_PROBE + 1):
                 y = a + (b - a) * i / N_PROBE if i < N_PROBE else b - KINK_TOL
                 st = _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
                 if st != prev:
-                    lo, hi = prev_y, y
-                    while hi - lo > KINK_TOL:
-                        m = 0.5 * (lo + hi)
-                        if _state(x, m, S, P, R, C, CB, PP, NPC, RR, zb, zt) == prev:
-                            lo = m
-                        else:
-                            hi = m
-                    out.append(0.5 * (lo + hi))
+                    out.append(_kink(x, prev_y, y, prev, st, S, P, R, C, CB, PP, NPC, RR, zb, zt))
                     live.append(True)
+                    uniform = -1
                 prev, prev_y = st, y
-        out.append(b)
-        live.append(True)
+        owner = int(owners[p])
+        if uniform > 0 and uniform == last and owner > 0 and owner != (uniform - 3) // 2 + 1:
+            out[-1] = b  # the last stretch goes on through this one
+        else:
+            out.append(b)
+            live.append(True)
+        last = uniform
     return np.array(out), np.array(live, dtype=np.bool_)
 
 
@@ -220,29 +301,45 @@ def _band_overlaps(low, v, edges, out, w):
 
 
 @njit(cache=True)
-def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb):
+def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb, change):
     """Gauss-Kronrod on y in [a, b] at ``x``: (the integral, its error); the Kronrod sums of the
-    removed height within each band of ``edges`` are added to ``kb``."""
+    removed height within each band of ``edges`` are added to ``kb``. ``change`` gets the first
+    place along y where the nodes' :func:`_state` changes: (the two nodes' y, their states), or a
+    state of -1 where all nodes are in one state."""
     k = 0.0
     g = 0.0
     m = 0.0
+    ys = np.empty(15)
+    sts = np.empty(15, dtype=np.int64)
     for i in range(15):
         u, wk, wg = _node(i)
         y, w = _smooth(a, b, u)
-        v, _, own = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        v, cause, own = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
         f = v * w
         k += wk * f
         g += wg * f
         m += wk * abs(f)
         if v > 0.0:
             _band_overlaps(max(own, zb), v, edges, kb, wk * w)
+        ys[i] = y
+        sts[i] = 0 if v <= 0.0 else 3 + 2 * cause + (1 if own < zb else 0)
+    order = np.argsort(ys)
+    change[2] = -1.0
+    for i in range(14):
+        p, q = order[i], order[i + 1]
+        if sts[p] != sts[q]:
+            change[0], change[1], change[2], change[3] = ys[p], ys[q], sts[p], sts[q]
+            break
     return k, _error(abs(k - g), m)
 
 
 @njit(cache=True)
 def _crossings_at_x(x, circles, segments, lo, hi):
-    """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi."""
+    """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; and the index (in the
+    cell's rows: 0 the CL's own sweep, j + 1 the earlier sweep ``C[j]``) of the sweep whose curve
+    makes each one (-1 for lo and hi)."""
     out = [lo, hi]
+    own = [-1.0, -1.0]
     for i in range(circles.shape[0]):
         u = x - circles[i, 0]
         s = circles[i, 2] * circles[i, 2] - u * u
@@ -251,15 +348,17 @@ def _crossings_at_x(x, circles, segments, lo, hi):
             for y in (circles[i, 1] - w, circles[i, 1] + w):
                 if lo < y < hi:
                     out.append(y)
+                    own.append(circles[i, 3])
     for i in range(segments.shape[0]):
         x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
         if x1 != x0 and min(x0, x1) <= x <= max(x0, x1):
             y = y0 + (y1 - y0) * (x - x0) / (x1 - x0)
             if lo < y < hi:
                 out.append(y)
+                own.append(segments[i, 4])
     pts = np.array(out)
-    pts.sort()
-    return pts
+    order = np.argsort(pts, kind="mergesort")
+    return pts[order], np.array(own)[order]
 
 
 @njit(cache=True)
@@ -279,18 +378,20 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
     """(integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all;
     the same integral of the removed height within each band of ``edges`` (its error not controlled
     on its own: it shares the whole integral's nodes))."""
-    pts, live = _with_kinks(x, _crossings_at_x(x, circles, segments, ylo, yhi), S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    pts, owners = _crossings_at_x(x, circles, segments, ylo, yhi)
+    pts, live = _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     nb = max(edges.shape[0] - 1, 0)
     lo = np.empty(_PANELS)
     hi = np.empty(_PANELS)
     val = np.empty(_PANELS)
     err = np.empty(_PANELS)
     bands = np.zeros((_PANELS, nb))
+    changes = np.empty((_PANELS, 4))
     n = 0
     for p in range(pts.shape[0] - 1):
         if live[p] and n < _PANELS:
             lo[n], hi[n] = pts[p], pts[p + 1]
-            val[n], err[n] = _gk_y(x, lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n])
+            val[n], err[n] = _gk_y(x, lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n], changes[n])
             n += 1
     while n < _PANELS:
         k, total = _worst(err, n)
@@ -300,12 +401,19 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
         if b - a <= MIN_PART:
             err[k] = 0.0  # as fine as it goes: taken as it is
             continue
+        # a kink the probes missed (a narrow crescent of removed material between two of them) is
+        # split at, found between the nodes that straddle it; else the part is halved
         m = 0.5 * (a + b)
+        c = changes[k]
+        if c[2] >= 0.0:
+            y = _kink(x, c[0], c[1], int(c[2]), int(c[3]), S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            if a + MIN_PART < y < b - MIN_PART:
+                m = y
         hi[k] = m
         bands[k] = 0.0
-        val[k], err[k] = _gk_y(x, a, m, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[k])
+        val[k], err[k] = _gk_y(x, a, m, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[k], changes[k])
         lo[n], hi[n] = m, b
-        val[n], err[n] = _gk_y(x, m, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n])
+        val[n], err[n] = _gk_y(x, m, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n], changes[n])
         n += 1
     return val[:n].sum(), bands[:n].sum(axis=0)
 
@@ -334,7 +442,7 @@ def _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, 
     :data:`N_PROBE` + 1 samples), without placing the changes: only the sequence counts here. The
     inner integral is smooth in ``x`` while the sequence stays the same; where it changes (a kink
     curve turns back, two cross, the removed region starts or ends) it is not."""
-    pts = _crossings_at_x(x, circles, segments, ylo, yhi)
+    pts = _crossings_at_x(x, circles, segments, ylo, yhi)[0]
     h = np.int64(7)
     last = np.int64(-2)
     for p in range(pts.shape[0] - 1):
@@ -430,31 +538,33 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
 
 
 def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tuple[np.ndarray, np.ndarray]:
-    """Circles (cx, cy, r) and segments (x0, y0, x1, y1) where the lower surfaces of the sweeps
-    ``rows`` may jump or bend: for each sweep, at each radius of ``radii_of[i]`` (its tool's R and
-    the radii where its profile changes piece)."""
-    circles: list[tuple[float, float, float]] = []
-    segments: list[tuple[float, float, float, float]] = []
-    for row, radii in zip(rows, radii_of):
+    """Circles (cx, cy, r, owner) and segments (x0, y0, x1, y1, owner) where the lower surfaces of
+    the sweeps ``rows`` may jump or bend: for each sweep, at each radius of ``radii_of[i]`` (its
+    tool's R and the radii where its profile has a corner); ``owner`` is the sweep's index in
+    ``rows``."""
+    circles: list[tuple[float, ...]] = []
+    segments: list[tuple[float, ...]] = []
+    for owner, (row, radii) in enumerate(zip(rows, radii_of)):
         x0, y0, x1, y1 = row[1], row[2], row[4], row[5]
         for r in radii:
-            circles += [(x0, y0, r), (x1, y1, r)]
+            circles += [(x0, y0, r, owner), (x1, y1, r, owner)]
             if row[0] == 0.0:
                 ux, uy = x1 - x0, y1 - y0
                 n = math.hypot(ux, uy)
                 if n > 0:
                     nx, ny = -uy / n * r, ux / n * r
-                    segments += [(x0 + nx, y0 + ny, x1 + nx, y1 + ny), (x0 - nx, y0 - ny, x1 - nx, y1 - ny)]
+                    segments += [(x0 + nx, y0 + ny, x1 + nx, y1 + ny, owner),
+                                 (x0 - nx, y0 - ny, x1 - nx, y1 - ny, owner)]
             else:
                 cx, cy, rho, a0, sw = row[7], row[8], row[9], row[10], row[11]
-                circles.append((cx, cy, rho + r))
+                circles.append((cx, cy, rho + r, owner))
                 if rho > r:
-                    circles.append((cx, cy, rho - r))
+                    circles.append((cx, cy, rho - r, owner))
                 for a in (a0, a0 + sw):
                     ca, sa = math.cos(a), math.sin(a)
                     lo = max(rho - r, 0.0)
-                    segments.append((cx + lo * ca, cy + lo * sa, cx + (rho + r) * ca, cy + (rho + r) * sa))
-    return (np.array(circles, dtype=np.float64).reshape(-1, 3), np.array(segments, dtype=np.float64).reshape(-1, 4))
+                    segments.append((cx + lo * ca, cy + lo * sa, cx + (rho + r) * ca, cy + (rho + r) * sa, owner))
+    return (np.array(circles, dtype=np.float64).reshape(-1, 4), np.array(segments, dtype=np.float64).reshape(-1, 5))
 
 
 @njit(cache=True)

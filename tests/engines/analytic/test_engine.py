@@ -8,8 +8,8 @@ import pytest
 from fusioncut.engines.analytic.engine import AnalyticEngine, UnsupportedStock
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
-from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CLStatus, CylinderStock, FlatEndMill,
-                             LinearMove, SpindleDirection, Toolpath)
+from fusioncut.model import (AptCutter, AptParameters, ArcMove, BallEndMill, BoxStock, BullNoseEndMill, ChamferMill,
+                             CLStatus, CylinderStock, FlatEndMill, LinearMove, SpindleDirection, Toolpath)
 
 ANGLE_TOL = 0.001  # degrees (issue 26: 0.001 against the B-Rep engine, 0.005 against closed forms)
 VOLUME_REL = 1e-7
@@ -41,8 +41,13 @@ def angle_gap(a: float, b: float) -> float:
 
 
 def assert_same_intervals(got, expected, tol):
+    """Each expected interval has one got interval of the same entry and span within ``tol`` degrees
+    (paired by the nearest entry on the circle: an entry of 359.999999 is one of 0)."""
     assert len(got) == len(expected), (got, expected)
-    for (ge, gx), (ee, ex) in zip(sorted(got, key=lambda iv: iv[0] % 360), sorted(expected, key=lambda iv: iv[0] % 360)):
+    left = list(got)
+    for ee, ex in expected:
+        ge, gx = min(left, key=lambda iv: angle_gap(iv[0], ee))
+        left.remove((ge, gx))
         assert angle_gap(ge, ee) <= tol, (got, expected)
         assert abs((gx - ge) - (ex - ee)) <= tol, (got, expected)
 
@@ -380,3 +385,51 @@ def test_agrees_with_brep_cl_by_cl_on_a_real_program():
         assert len(a.slices) == len(b.slices), a.cl_index
         for s, t in zip(a.slices, b.slices):
             assert_same_intervals(intervals(s), intervals(t), ANGLE_TOL)
+
+
+@pytest.mark.parametrize("engine", [AnalyticEngine, BRepEngine])
+@pytest.mark.parametrize("path", ["along x", "at 37 degrees, 3 decimals"])
+def test_tapered_ball_in_a_v_groove_closed_form(path, engine):
+    """A V-bit (half-angle g) cuts a groove of depth Dv; a tapered ball (ball radius r, cone at b
+    from the axis tangent to the ball) then runs deeper (tip at -d) along the same line. The groove
+    leaves material at |y| > w(z) = (Dv - d + z) tan g across the path at z above the tip, so the slice
+    of radius rho(z) holds material on its front half where |cos(immersion)| > w / rho: immersion (0,
+    a) and (180 - a, 180), a = acos(w / rho); the whole front half where w <= 0. The contact ends
+    where w = rho on the cone, and a CL of length L inside removes L times the cross-section between
+    the groove's V and the tool's outline (ball arc, then cone), in closed form. A post rounds the
+    path's two points (3 decimals) for both passes alike; the CL checked is one in the middle of the
+    second pass, cut into 10 mm CLs along the same line."""
+    r, b, g, Dv, d = 1.5, math.radians(15.0), math.radians(45.0), 4.0, 6.0
+    tool = AptCutter(2 * r * math.cos(b), 20, apt_parameters=AptParameters(2 * r * math.cos(b), r, 0.0, r, 0.0,
+                                                                            math.degrees(b), 20))
+    vbit = ChamferMill(20, 20, taper_angle=math.degrees(g))
+    stock = BoxStock((-50, -50, -20), (50, 50, 0))
+    turn = 0.0 if path == "along x" else 37.0
+    ends = [rot((x, 0.0, 0.0), turn) for x in (-60.0, 60.0)]
+    if path != "along x":
+        ends = [(round(p[0], 3), round(p[1], 3), 0.0) for p in ends]
+    (x0, y0, _), (x1, y1, _) = ends
+    moves = [feed((x0, y0, -Dv), (x1, y1, -Dv), tool=2), feed((x1, y1, -Dv), (x1, y1, 5), tool=2),
+             feed((x1, y1, 5), (x0, y0, 5)), feed((x0, y0, 5), (x0, y0, -d)), feed((x0, y0, -d), (x1, y1, -d))]
+    _, maps = run(moves, {1: tool, 2: vbit}, stock, engine, slice_height=0.25, min_chip_thickness=0.0,
+                  max_segment_length=10.0)
+    last = min(maps[-12:], key=lambda m: math.hypot(*m.position[:2]))  # the second pass's CL ending at the middle
+    cot_b, cot_g = 1 / math.tan(b), 1 / math.tan(g)
+    yj, zj = r * math.cos(b), r * (1 - math.sin(b))  # where the cone meets the ball (mm from the axis, above the tip)
+    yc = (Dv - d + zj - yj * cot_b) / (cot_g - cot_b)  # where the groove's side meets the cone
+    top = zj + (yc - yj) * cot_b  # the contact's top above the tip
+    assert last.ap == pytest.approx(top, abs=1e-9)
+    assert len(last.engaged_slices) == math.ceil(top / 0.25)
+    for s in last.engaged_slices:
+        rho = math.sqrt(r * r - (r - s.z) ** 2) if s.z < zj else yj + (s.z - zj) * math.tan(b)
+        assert s.radius == pytest.approx(rho, abs=1e-12)
+        w = (Dv - d + s.z) * math.tan(g)
+        a = math.degrees(math.acos(w / rho)) if w > 0 else 90.0
+        expected = [(0.0, 180.0)] if w <= 0 else [(0.0, a), (180.0 - a, 180.0)]
+        assert_same_intervals(intervals(s), expected, ANGLE_TOL)
+    # the cross-section: 2 x the integral over 0..yc of the groove's floor less the tool's outline
+    groove = -Dv * yc + 0.5 * cot_g * yc * yc
+    ball = (r - d) * yj - (0.5 * yj * math.sqrt(r * r - yj * yj) + 0.5 * r * r * math.asin(yj / r))
+    cone = (zj - d) * (yc - yj) + 0.5 * cot_b * (yc - yj) ** 2
+    length = math.dist(last.start, last.position)
+    assert last.removed_volume == pytest.approx(2 * (groove - ball - cone) * length, rel=VOLUME_REL)
