@@ -58,7 +58,8 @@ from fusioncut.errors import FusionCutError, InputError
 from fusioncut.io import tool_sources
 from fusioncut.io.job import RUN_OPTIONS, Job, build_stock, job_hash, read_toolpath
 from fusioncut.io.results import ResultWriter, load_results
-from fusioncut.model import BoxStock, CLStatus, EngagementMap, MillingTool, Move, Stock, Toolpath
+from fusioncut.model import (ArcMove, ArcPlane, BoxStock, CLStatus, EngagementMap, MillingTool, Move, Stock,
+                             Toolpath)
 
 log = logging.getLogger("fusioncut.run")
 
@@ -322,7 +323,28 @@ def _why_not_analytic(options: EngineOptions, toolpath: Toolpath, stock: Stock, 
     if wants_ipw:
         return ("an IPW export or snapshot is asked, which needs the B-Rep workpiece (the analytic engine keeps "
                 "none; without the export, e.g. --no-ipw-export, the analytic engine runs it)")
+    if _flat_level_cuts(toolpath, default_tool):
+        return ("every cut is a level or vertical move of a flat end mill, where the B-Rep engine's 2.5D layers are "
+                "exact as well and far faster (docs/decisions/engine-auto.md)")
     return ""
+
+
+def _flat_level_cuts(toolpath: Toolpath, default_tool: MillingTool | None) -> bool:
+    """Whether every feed move is level (a line or an XY arc at one height) or vertical (a plunge or a
+    retract) and made with a flat end mill: the program the B-Rep engine cuts as 2.5D layers, exactly
+    (a ramp, a helix, a 3D move or another tool shape it sweeps in steps or as solids)."""
+    for move in toolpath.moves:
+        if move.is_rapid:
+            continue
+        tool = toolpath.tools.get(move.tool, default_tool) if move.tool is not None else default_tool
+        if tool is None or tool.kind != "flat":
+            return False
+        (x0, y0, z0), (x1, y1, z1) = move.start, move.end
+        if isinstance(move, ArcMove) and move.plane != ArcPlane.XY:
+            return False
+        if z0 != z1 and (isinstance(move, ArcMove) or (x0, y0) != (x1, y1)):
+            return False
+    return True
 
 
 def _engine(options: EngineOptions, workers: int, scheduler: str | None) -> Engine:

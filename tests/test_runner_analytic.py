@@ -107,7 +107,7 @@ def test_an_interrupted_analytic_run_resumes_to_identical_results(tmp_path):
 
 
 def test_a_job_that_does_not_name_the_engine_keeps_its_hash(tmp_path):
-    """The hash below was computed before the engine option existed, for this very job."""
+    """The hash below was computed before the engine and kernel budget options existed, for this very job."""
     (tmp_path / "p.nc").write_text("G21 G90\nT1 M6\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10\nM30\n")
     job = Job(name="h", stock=StockSpec(kind="box", min=(0, 0, -10), max=(30, 20, 0)),
               tools=[ToolSpec(number=1, kind="flat", diameter=6, flute_length=15)], toolpaths=["p.nc"],
@@ -117,6 +117,8 @@ def test_a_job_that_does_not_name_the_engine_keeps_its_hash(tmp_path):
     analytic = job.model_copy(update={"options": Options(max_segment_length=3.0, engine="analytic")})
     assert job_hash(brep, tmp_path) == "fe98d63b5b0a2285"
     assert job_hash(analytic, tmp_path) != "fe98d63b5b0a2285"
+    budget = job.model_copy(update={"options": Options(max_segment_length=3.0, kernel_budget_s=5.0)})
+    assert job_hash(budget, tmp_path) == "fe98d63b5b0a2285"  # the kernel's budget changes no computed CL
 
 
 def test_an_unknown_engine_is_refused_naming_the_flag(tmp_path):
@@ -238,6 +240,7 @@ def test_auto_is_the_default_and_runs_the_analytic_engine_where_it_applies(tmp_p
     ("cylinder", "needs a box stock and the stock is a CylinderStock"),
     ("sampled", "sweep 'sampled' is asked"),
     ("tool", "cannot sweep a tool: tool T2: its lower profile is not convex"),
+    ("2.5D", "every cut is a level or vertical move of a flat end mill"),
 ])
 def test_auto_runs_the_brep_engine_where_the_analytic_one_does_not_apply_and_says_why(tmp_path, caplog, monkeypatch,
                                                                                       case, why):
@@ -247,6 +250,8 @@ def test_auto_runs_the_brep_engine_where_the_analytic_one_does_not_apply_and_say
     job, base = auto_job(tmp_path, **changes)
     if case == "sampled":
         job = job.model_copy(update={"options": job.options.model_copy(update={"sweep": "sampled"})})
+    if case == "2.5D":  # the slot alone: a plunge and a level cut of the flat end mill
+        (base / "prog.nc").write_text(PROGRAM.split("(Ramp)")[0] + "M30\n")
     if case == "tool":
         from fusioncut.engines.analytic import engine as analytic
         from fusioncut.engines.analytic.profile import UnsupportedTool

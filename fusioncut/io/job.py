@@ -189,7 +189,7 @@ ENGINE_ONLY = frozenset({"failure_dir", "merge_growth", "fuzzy", "fuzzy_retries"
 OPTION_BOUNDS: dict[str, dict[str, float]] = {
     "slice_height": {"gt": 0}, "max_segment_length": {"gt": 0}, "chord_tolerance": {"gt": 0},
     "ramp_step": {"gt": 0}, "cell_size": {"gt": 0}, "min_chip_thickness": {"ge": 0}, "max_layers": {"ge": 1},
-    "merge_growth": {"gt": 0}, "fuzzy": {"ge": 0}, "ceiling_pixel": {"gt": 0},
+    "merge_growth": {"gt": 0}, "fuzzy": {"ge": 0}, "ceiling_pixel": {"gt": 0}, "kernel_budget_s": {"gt": 0},
 }
 # the values a job may ask for where the option's type holds more (SweepMethod.STEP is only reported)
 OPTION_TYPES: dict[str, Any] = {"sweep": Literal["exact", "sampled"], "engine": Literal["auto", "brep", "analytic"]}
@@ -436,8 +436,9 @@ def job_hash(job: Job, base: Path) -> str:
     every input file (toolpaths, tool library, stock solid). Equal hashes mean equal results.
     The ``engine`` option counts only when it is ``analytic``: a job that asks for ``auto`` (the
     default) or ``brep`` hashes as it did before the option existed (the engine an ``auto`` run
-    resolved to is in its checkpoint, which a resume checks: :mod:`fusioncut.runner`)."""
-    defaults = {"engine"} if job.options.engine in ("auto", "brep") else set()
+    resolved to is in its checkpoint, which a resume checks: :mod:`fusioncut.runner`). The kernel's
+    time budget never counts: it decides whether a CL fails, not what a computed CL is."""
+    defaults = {"kernel_budget_s"} | ({"engine"} if job.options.engine in ("auto", "brep") else set())
     h = hashlib.sha256(job.model_dump_json(exclude={"options": set(RUN_OPTIONS) | defaults}).encode())
     files = [*job.toolpaths, *([job.tool_library] if job.tool_library else [])]
     if job.stock.kind == "file" and job.stock.path:

@@ -475,7 +475,7 @@ def test_stability_command(tmp_path) -> None:
 
 
 @pytest.mark.skipif(not PROGRAM.exists(), reason="shared test data not available")
-def test_real_program_limits_from_saved_tables(run) -> None:
+def test_real_program_limits_from_saved_tables(run) -> None:  # noqa: F811  (the fixture)
     from fusioncut.analysis.forces import engagement_maps_from_results, results_slice_height
     from fusioncut.analysis.stability_table import stability_table
     from fusioncut.io.results import load_results

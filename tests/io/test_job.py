@@ -109,7 +109,8 @@ def test_the_jobs_engine_options_are_engine_options_fields_with_their_defaults_a
         assert field.description == engine[name].metadata["help"], name
     # a job's engine options make the EngineOptions they say, every field included
     values = {"slice_height": 0.5, "max_segment_length": 2.0, "chord_tolerance": 2e-3, "ramp_step": 0.1,
-              "sweep": "sampled", "cell_size": None, "min_chip_thickness": 0.0, "engine": "analytic"}
+              "sweep": "sampled", "cell_size": None, "min_chip_thickness": 0.0, "engine": "analytic",
+              "kernel_budget_s": 30.0}
     assert set(values) == job_fields
     made = EngineOptions(**Options(**values).model_dump(exclude=set(RUN_OPTIONS)))
     assert {k: getattr(made, k) for k in values} == values
@@ -119,6 +120,7 @@ def test_the_jobs_engine_options_are_engine_options_fields_with_their_defaults_a
     ({"slice_height": 0}, "options.slice_height"), ({"cell_size": -1}, "options.cell_size"),
     ({"min_chip_thickness": -1e-3}, "options.min_chip_thickness"), ({"sweep": "step"}, "options.sweep"),
     ({"layers": False}, "options.layers"),  # an engine-only option is not a job option
+    ({"kernel_budget_s": 0}, "options.kernel_budget_s"),
 ])
 def test_bad_engine_options_name_the_field(tmp_path, options, message):
     with pytest.raises(InputError, match=message):

@@ -47,6 +47,7 @@ def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock: Se
     if x0 >= x1 or y0 >= y1:  # the footprint misses the stock: nothing to cut, nothing to ask the kernel
         idle = CLStatus.RAPID if cl.move.is_rapid else CLStatus.AIR
         return replace(engagement_map(cl, CutOutcome(idle), [], []), engine=EngineKind.ANALYTIC.value)
+    engine = None
     try:
         from fusioncut.engines.brep.engine import BRepEngine  # the kernel: only for a CL that needs it
 
@@ -71,6 +72,9 @@ def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock: Se
         log.error("CL %d (%s): the B-Rep engine's fallback failed: %s", cl.index, cl.move.source, exc)
         return EngagementMap(**base, status=CLStatus.FAILED, engine=EngineKind.BREP.value,
                              reason=f"analytic engine: {why}; B-Rep engine: {type(exc).__name__}: {exc}")
+    finally:
+        if engine is not None:
+            engine.close()  # ends its kernel's worker process (fusioncut.engines.brep.budget)
     if m.status == CLStatus.FAILED:
         return replace(m, engine=EngineKind.BREP.value, reason=f"analytic engine: {why}; B-Rep engine: {m.reason}")
     note = f"the analytic engine failed ({why}): computed by the B-Rep engine on a local workpiece"

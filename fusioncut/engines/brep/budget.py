@@ -139,18 +139,21 @@ def guarded(call: Callable[..., T], args: tuple, deadline: Deadline, what: str) 
         return call(*args)
     if deadline.left() <= 0.0:
         raise KernelBudgetExceeded(what, deadline.budget_s, time.monotonic() - deadline.start)
-    return _worker().call(call, args, deadline, what)
+    with _LOCK:  # one child, one pipe: the calls of runs in several threads of a process take turns
+        return _worker().call(call, args, deadline, what)
 
 
 def stop_worker() -> None:
     """End this process's kernel child (it is forked again at the next guarded call)."""
     global _WORKER
-    if _WORKER is not None and _WORKER.parent == os.getpid():
-        _WORKER.stop()
-    _WORKER = None
+    with _LOCK:
+        if _WORKER is not None and _WORKER.parent == os.getpid():
+            _WORKER.stop()
+        _WORKER = None
 
 
 _WORKER: _KernelChild | None = None
+_LOCK = threading.RLock()
 
 
 def _worker() -> _KernelChild:
