@@ -22,7 +22,11 @@ the rectangle, each inner one a tenth (so that their errors do not look like a r
 
 The integrand also bends where no footprint ends: where ``L`` meets ``h`` (the removed region's
 edge) and where the earlier sweep giving ``h`` changes. Along a line those **kinks** are found by
-probing the integrand's state between break points and bisecting each change (:func:`_with_kinks`);
+probing the integrand's state between break points (at least :data:`N_PROBE` + 1 probes, at most
+:data:`PROBE_STEP` tool radii apart), each change located as the root of the two crossing surfaces'
+difference, and each dip of the state's margin between probes searched for a region of another
+state the probes stepped over (:func:`_with_kinks`; a thin crescent where a finishing pass grazes
+the last one); a change the Gauss-Kronrod nodes still meet splits its part there;
 across lines, the places where the sequence of states changes (a kink curve turns back, two cross)
 become break points of the outer integral (:func:`_with_x_kinks`). A stretch where nothing can be
 removed is proven so from bounds and skipped (:func:`_nothing_removed`). Probes are samples: a
@@ -40,6 +44,10 @@ from fusioncut.engines.analytic.sweeps import point_segment_distance, sweep_floo
 
 MIN_PART = 1e-9  # mm
 N_PROBE = 8  # samples a stretch between break points is probed at for kinks
+PROBE_STEP = 1 / 16  # tool radii: the probes along a stretch are at most this far apart
+MAX_PROBES = 256  # probes a stretch, a bound
+MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this (equal surfaces, a
+# retraced pass, would show dips of round-off)
 KINK_TOL = 1e-12  # mm: a kink's place along a line
 X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
 _PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
@@ -95,6 +103,93 @@ def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     if v <= 0.0:
         return 0
     return 3 + 2 * cause + (1 if own < zb else 0)
+
+
+@njit(cache=True)
+def _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """(:func:`_state` at (x, y); its margin there, mm: how far the surfaces that decide the state are
+    from deciding another one). Nothing removed: max(L, bottom) - min(h, top), inf outside the CL's
+    footprint. Something removed: the least of the removed height, the gap from ``h`` to the next
+    lowest earlier sweep (or the top) and ``|L - bottom|``. A narrow region of another state between
+    two probes sits in a dip of the margin (:func:`_dip`)."""
+    own = sweep_lower(S, P, R, x, y, 0.0)
+    if own == math.inf:
+        return 0, math.inf
+    low = max(own, zb)
+    h1, h2 = zt, math.inf  # the two least lower surfaces, the top counting as one
+    cause = -1
+    for j in range(C.shape[0]):
+        if x < CB[j, 0] or x > CB[j, 2] or y < CB[j, 1] or y > CB[j, 3]:
+            continue
+        if C[j, 3] >= h2 and C[j, 6] >= h2:
+            continue
+        k = int(C[j, 12])
+        if sweep_floor(C[j], PP[k, :NPC[k]], RR[k], x, y, 0.0) >= h2:
+            continue
+        h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], x, y, 0.0)
+        if h < h1:
+            h1, h2 = h, h1
+            cause = j
+        elif h < h2:
+            h2 = h
+    if h1 <= low:
+        return 0, low - h1
+    return 3 + 2 * cause + (1 if own < zb else 0), min(h1 - low, h2 - h1, abs(own - zb))
+
+
+@njit(cache=True)
+def _dip(x, a, m, b, fm, s0, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """A place in (a, b) of another state than ``s0``, found from the probe ``m`` between ``a`` and
+    ``b`` whose margin ``fm`` (:func:`_probe`) is below both of theirs, all three in state ``s0``; nan
+    where none is found. Brent's minimisation of the margin (as :func:`.sweeps._bracket_min`), stopped
+    at the first other state or when the bracket is 1e-9 of its first width: a narrow crescent of
+    removed material, or of another sweep's floor, between two probes sits in such a dip (the margin
+    is a difference of smooth surfaces, a V where two earlier sweeps cross)."""
+    tol = 1e-9 * (b - a)
+    xb = w = v = m
+    fx = fw = fv = fm
+    d = e = 0.0
+    for _ in range(100):
+        mid = 0.5 * (a + b)
+        if abs(xb - mid) <= 2.0 * tol - 0.5 * (b - a):
+            break
+        golden = True
+        if abs(e) > tol:
+            r = (xb - w) * (fx - fv)
+            q = (xb - v) * (fx - fw)
+            p = (xb - v) * q - (xb - w) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            q = abs(q)
+            if abs(p) < abs(0.5 * q * e) and p > q * (a - xb) and p < q * (b - xb):
+                e, d = d, p / q
+                golden = False
+                if (xb + d) - a < 2.0 * tol or b - (xb + d) < 2.0 * tol:
+                    d = tol if xb < mid else -tol
+        if golden:
+            e = (a - xb) if xb >= mid else (b - xb)
+            d = 0.3819660112501051 * e
+        u = xb + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
+        st, fu = _probe(x, u, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        if st != s0:
+            return u
+        if fu <= fx:
+            if u >= xb:
+                a = xb
+            else:
+                b = xb
+            v, fv, w, fw, xb, fx = w, fw, xb, fx, u, fu
+        else:
+            if u < xb:
+                a = u
+            else:
+                b = u
+            if fu <= fw or w == xb:
+                v, fv, w, fw = w, fw, u, fu
+            elif fu <= fv or v == xb or v == w:
+                v, fv = u, fu
+    return math.nan
 
 
 @njit(cache=True)
@@ -175,9 +270,11 @@ def _kink(x, lo, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """(``pts`` with the kinks of the removed height along the line at ``x`` added, and per stretch
     between them whether anything may be removed there). A stretch :func:`_nothing_removed` proves
-    empty is kept whole; in the others :func:`_state` is probed at :data:`N_PROBE` + 1 even samples
-    and each change located (:func:`_kink`). A kink left inside a stretch costs the adaptive rule
-    a split at it (:func:`inner_integral`).
+    empty is kept whole; in the others the state and its margin (:func:`_probe`) are probed at even
+    samples (:data:`N_PROBE` + 1 at least, :data:`PROBE_STEP` tool radii apart at most), each change
+    located (:func:`_kink`), and each probe in the same state as both its neighbours with a smaller
+    margin searched for another state (:func:`_dip`), whose region's edges are kinks too. A kink
+    left inside a stretch costs the adaptive rule a split at it (:func:`inner_integral`).
 
     A break point between two stretches probed in one and the same state is dropped where its curve
     (``owners``, as :func:`_crossings_at_x` gives them) is neither the CL's own sweep's nor that of
@@ -196,17 +293,31 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             continue
         uniform = -1
         if b - a > 4 * KINK_TOL:
-            prev_y = a + KINK_TOL
-            prev = _state(x, prev_y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-            uniform = prev
-            for i in range(1, N_PROBE + 1):
-                y = a + (b - a) * i / N_PROBE if i < N_PROBE else b - KINK_TOL
-                st = _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-                if st != prev:
-                    out.append(_kink(x, prev_y, y, prev, st, S, P, R, C, CB, PP, NPC, RR, zb, zt))
-                    live.append(True)
-                    uniform = -1
-                prev, prev_y = st, y
+            n = min(max(N_PROBE, int(math.ceil((b - a) / (PROBE_STEP * R)))), MAX_PROBES)
+            ys = np.empty(n + 1)
+            sts = np.empty(n + 1, dtype=np.int64)
+            gaps = np.empty(n + 1)
+            for i in range(n + 1):
+                ys[i] = a + KINK_TOL if i == 0 else (a + (b - a) * i / n if i < n else b - KINK_TOL)
+                sts[i], gaps[i] = _probe(x, ys[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            kinks = np.empty(2 * n)
+            nk = 0
+            for i in range(1, n + 1):
+                if sts[i] != sts[i - 1]:
+                    kinks[nk] = _kink(x, ys[i - 1], ys[i], sts[i - 1], sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                    nk += 1
+                elif (i < n and sts[i + 1] == sts[i] and MARGIN_TOL < gaps[i] < gaps[i - 1]
+                      and gaps[i] <= gaps[i + 1] and math.isfinite(gaps[i - 1]) and math.isfinite(gaps[i + 1])):
+                    y = _dip(x, ys[i - 1], ys[i], ys[i + 1], gaps[i], sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                    if not math.isnan(y):  # a region the probes stepped over: its two edges
+                        s1 = _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                        kinks[nk] = _kink(x, ys[i - 1], y, sts[i], s1, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                        kinks[nk + 1] = _kink(x, y, ys[i + 1], s1, sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                        nk += 2
+            for y in np.sort(kinks[:nk]):
+                out.append(y)
+                live.append(True)
+            uniform = sts[0] if nk == 0 else -1
         owner = int(owners[p])
         if uniform > 0 and uniform == last and owner > 0 and owner != (uniform - 3) // 2 + 1:
             out[-1] = b  # the last stretch goes on through this one
