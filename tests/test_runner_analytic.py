@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 
 from fusioncut.cli import app
 from fusioncut.engines.analytic.engine import AnalyticEngine, CheckpointMismatch, UnsupportedStock
+from fusioncut.engines.analytic.profile import UnsupportedTool
 from fusioncut.engines.base import EngineOptions
 from fusioncut.io.job import Job, Options, StockSpec, ToolSpec, job_hash, load_job
 from fusioncut.io.results import load_results
@@ -53,6 +54,21 @@ def job_file(tmp_path: Path, **options) -> Path:
     path = tmp_path / "job.json"
     path.write_text(json.dumps(job))
     return path
+
+
+def refuse_the_ball(monkeypatch) -> None:
+    """Make the analytic engine refuse tool T2 (the ball) as it refuses a non-convex lower profile,
+    which no tool family of a job makes today."""
+    from fusioncut.engines.analytic import engine as analytic
+
+    real = analytic.lower_profile
+
+    def refuse_ball(tool):
+        if tool.number == 2:
+            raise UnsupportedTool(f"tool {tool.label}: its lower profile is not convex")
+        return real(tool)
+
+    monkeypatch.setattr(analytic, "lower_profile", refuse_ball)
 
 
 def tables(out: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -169,17 +185,7 @@ def test_a_parallel_analytic_run_equals_one_process_and_resumes_across_them(tmp_
 def test_an_unsupported_tool_is_refused_before_anything_is_written(tmp_path, monkeypatch):
     """The runner asks the engine about every tool first; the profile's refusal (a non-convex lower
     profile, which no tool family of a job makes today) is stood in for here."""
-    from fusioncut.engines.analytic import engine as analytic
-    from fusioncut.engines.analytic.profile import UnsupportedTool
-
-    real = analytic.lower_profile
-
-    def refuse_ball(tool):
-        if tool.number == 2:
-            raise UnsupportedTool(f"tool {tool.label}: its lower profile is not convex")
-        return real(tool)
-
-    monkeypatch.setattr(analytic, "lower_profile", refuse_ball)
+    refuse_the_ball(monkeypatch)
     job, base = load_job(job_file(tmp_path))
     out = tmp_path / "out"
     with pytest.raises(UnsupportedTool, match="not convex"):
@@ -253,17 +259,7 @@ def test_auto_runs_the_brep_engine_where_the_analytic_one_does_not_apply_and_say
     if case == "2.5D":  # the slot alone: a plunge and a level cut of the flat end mill
         (base / "prog.nc").write_text(PROGRAM.split("(Ramp)")[0] + "M30\n")
     if case == "tool":
-        from fusioncut.engines.analytic import engine as analytic
-        from fusioncut.engines.analytic.profile import UnsupportedTool
-
-        real = analytic.lower_profile
-
-        def refuse_ball(tool):
-            if tool.number == 2:
-                raise UnsupportedTool(f"tool {tool.label}: its lower profile is not convex")
-            return real(tool)
-
-        monkeypatch.setattr(analytic, "lower_profile", refuse_ball)
+        refuse_the_ball(monkeypatch)
     with caplog.at_level(logging.INFO, logger="fusioncut.run"):
         run_job(job, base, tmp_path / "out", export_ipw=case == "export", resume=False)
     assert "engine auto: the B-Rep engine runs this job, as" in caplog.text and why in caplog.text

@@ -181,58 +181,84 @@ def _arc_value(mode, S, P, R, px, py, pz, t):
     return d - r
 
 
+# Brent's minimisation (parabolic steps through the three best points, golden-section steps where
+# a parabola's would not shrink the bracket fast enough) as a stepper, so that each caller evaluates
+# its own function and may stop early: state = [a, b, x, w, v, fx, fw, fv, d, e, tol], x the best
+# point so far, [a, b] the bracket
+_A, _B, _X, _W, _V, _FX, _FW, _FV, _D, _E, _TOL = range(11)
+
+
+@njit(cache=True)
+def brent_start(a, x, b, fx, tol):
+    """Brent's state on the bracket [a, b] around ``x`` (value ``fx``), to stop once the bracket is
+    within ``tol`` of the best point."""
+    return np.array([a, b, x, x, x, fx, fx, fx, 0.0, 0.0, tol + 1e-300])
+
+
+@njit(cache=True)
+def brent_next(st):
+    """The next point to evaluate, or nan once the bracket is within its tolerance."""
+    a, b, x, w, v, fx, fw, fv, d, e, tol = st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], st[8], st[9], st[10]
+    m = 0.5 * (a + b)
+    if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):
+        return math.nan
+    golden = True
+    if abs(e) > tol:
+        r = (x - w) * (fx - fv)
+        q = (x - v) * (fx - fw)
+        p = (x - v) * q - (x - w) * r
+        q = 2.0 * (q - r)
+        if q > 0.0:
+            p = -p
+        q = abs(q)
+        if abs(p) < abs(0.5 * q * e) and p > q * (a - x) and p < q * (b - x):
+            e, d = d, p / q
+            golden = False
+            if x + d - a < 2.0 * tol or b - (x + d) < 2.0 * tol:
+                d = tol if x < m else -tol
+    if golden:
+        e = (a - x) if x >= m else (b - x)
+        d = (1.0 - _GOLDEN) * e
+    st[_D], st[_E] = d, e
+    return x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
+
+
+@njit(cache=True)
+def brent_take(st, u, fu):
+    """Take the value ``fu`` at the point ``u`` :func:`brent_next` gave."""
+    x = st[_X]
+    if fu <= st[_FX]:
+        if u >= x:
+            st[_A] = x
+        else:
+            st[_B] = x
+        st[_V], st[_FV], st[_W], st[_FW] = st[_W], st[_FW], x, st[_FX]
+        st[_X], st[_FX] = u, fu
+    else:
+        if u < x:
+            st[_A] = u
+        else:
+            st[_B] = u
+        if fu <= st[_FW] or st[_W] == x:
+            st[_V], st[_FV], st[_W], st[_FW] = st[_W], st[_FW], u, fu
+        elif fu <= st[_FV] or st[_V] == x or st[_V] == st[_W]:
+            st[_V], st[_FV] = u, fu
+
+
 @njit(cache=True)
 def _bracket_min(mode, S, P, R, px, py, pz, a, x, b, fx):
-    """The least value of :func:`_arc_value` found by Brent's minimisation in [a, b] from its sampled
-    lowest point ``x`` (value ``fx``): parabolic steps through the three best points, golden-section
-    steps where a parabola's step would not shrink the bracket fast enough, until the bracket is
-    :data:`T_TOL` (relative to its width at the start) around the best point. Near a smooth minimum
-    the value's error is quadratic in that, far below 1e-20 mm; where the value has a corner (a flat
-    bottom's edge, the footprint's rim) the golden steps converge linearly on it."""
-    tol = T_TOL * (b - a) + 1e-300
-    w = v = x
-    fw = fv = fx
-    d = e = 0.0
+    """The least value of :func:`_arc_value` found by Brent's minimisation (:func:`brent_next`) in
+    [a, b] from its sampled lowest point ``x`` (value ``fx``), until the bracket is :data:`T_TOL`
+    (relative to its width at the start) around the best point. Near a smooth minimum the value's
+    error is quadratic in that, far below 1e-20 mm; where the value has a corner (a flat bottom's
+    edge, the footprint's rim) the golden steps converge linearly on it."""
+    st = brent_start(a, x, b, fx, T_TOL * (b - a))
     for _ in range(_BRENT_STEPS):
-        m = 0.5 * (a + b)
-        if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):
+        u = brent_next(st)
+        if math.isnan(u):
             break
-        golden = True
-        if abs(e) > tol:
-            r = (x - w) * (fx - fv)
-            q = (x - v) * (fx - fw)
-            p = (x - v) * q - (x - w) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                p = -p
-            q = abs(q)
-            if abs(p) < abs(0.5 * q * e) and p > q * (a - x) and p < q * (b - x):
-                e, d = d, p / q
-                golden = False
-                u = x + d
-                if u - a < 2.0 * tol or b - u < 2.0 * tol:
-                    d = tol if x < m else -tol
-        if golden:
-            e = (a - x) if x >= m else (b - x)
-            d = (1.0 - _GOLDEN) * e
-        u = x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
-        fu = _arc_value(mode, S, P, R, px, py, pz, u)
-        if fu <= fx:
-            if u >= x:
-                a = x
-            else:
-                b = x
-            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
-        else:
-            if u < x:
-                a = u
-            else:
-                b = u
-            if fu <= fw or w == x:
-                v, fv, w, fw = w, fw, u, fu
-            elif fu <= fv or v == x or v == w:
-                v, fv = u, fu
-    return fx
+        brent_take(st, u, _arc_value(mode, S, P, R, px, py, pz, u))
+    return st[_FX]
 
 
 @njit(cache=True)

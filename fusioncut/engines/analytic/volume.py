@@ -40,7 +40,8 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import point_segment_distance, sweep_floor, sweep_lower
+from fusioncut.engines.analytic.sweeps import (brent_next, brent_start, brent_take, point_segment_distance,
+                                              sweep_floor, sweep_lower)
 
 MIN_PART = 1e-9  # mm
 N_PROBE = 8  # samples a stretch between break points is probed at for kinks
@@ -141,54 +142,19 @@ def _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 def _dip(x, a, m, b, fm, s0, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """A place in (a, b) of another state than ``s0``, found from the probe ``m`` between ``a`` and
     ``b`` whose margin ``fm`` (:func:`_probe`) is below both of theirs, all three in state ``s0``; nan
-    where none is found. Brent's minimisation of the margin (as :func:`.sweeps._bracket_min`), stopped
+    where none is found. Brent's minimisation of the margin (:func:`.sweeps.brent_next`), stopped
     at the first other state or when the bracket is 1e-9 of its first width: a narrow crescent of
     removed material, or of another sweep's floor, between two probes sits in such a dip (the margin
     is a difference of smooth surfaces, a V where two earlier sweeps cross)."""
-    tol = 1e-9 * (b - a)
-    xb = w = v = m
-    fx = fw = fv = fm
-    d = e = 0.0
+    st = brent_start(a, m, b, fm, 1e-9 * (b - a))
     for _ in range(100):
-        mid = 0.5 * (a + b)
-        if abs(xb - mid) <= 2.0 * tol - 0.5 * (b - a):
+        u = brent_next(st)
+        if math.isnan(u):
             break
-        golden = True
-        if abs(e) > tol:
-            r = (xb - w) * (fx - fv)
-            q = (xb - v) * (fx - fw)
-            p = (xb - v) * q - (xb - w) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                p = -p
-            q = abs(q)
-            if abs(p) < abs(0.5 * q * e) and p > q * (a - xb) and p < q * (b - xb):
-                e, d = d, p / q
-                golden = False
-                if (xb + d) - a < 2.0 * tol or b - (xb + d) < 2.0 * tol:
-                    d = tol if xb < mid else -tol
-        if golden:
-            e = (a - xb) if xb >= mid else (b - xb)
-            d = 0.3819660112501051 * e
-        u = xb + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
-        st, fu = _probe(x, u, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-        if st != s0:
+        state, fu = _probe(x, u, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        if state != s0:
             return u
-        if fu <= fx:
-            if u >= xb:
-                a = xb
-            else:
-                b = xb
-            v, fv, w, fw, xb, fx = w, fw, xb, fx, u, fu
-        else:
-            if u < xb:
-                a = u
-            else:
-                b = u
-            if fu <= fw or w == xb:
-                v, fv, w, fw = w, fw, u, fu
-            elif fu <= fv or v == xb or v == w:
-                v, fv = u, fu
+        brent_take(st, u, fu)
     return math.nan
 
 
