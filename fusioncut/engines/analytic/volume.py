@@ -46,7 +46,7 @@ from fusioncut.engines.analytic.sweeps import (brent_next, brent_start, brent_ta
 MIN_PART = 1e-9  # mm
 N_PROBE = 8  # samples a stretch between break points is probed at for kinks
 PROBE_STEP = 1 / 16  # tool radii: the probes along a stretch are at most this far apart
-MAX_PROBES = 256  # probes a stretch, a bound
+MAX_PROBES = 64  # probes a stretch, a bound
 MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this (equal surfaces, a
 # retraced pass, would show dips of round-off)
 KINK_TOL = 1e-12  # mm: a kink's place along a line
@@ -239,7 +239,9 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     empty is kept whole; in the others the state and its margin (:func:`_probe`) are probed at even
     samples (:data:`N_PROBE` + 1 at least, :data:`PROBE_STEP` tool radii apart at most), each change
     located (:func:`_kink`), and each probe in the same state as both its neighbours with a smaller
-    margin searched for another state (:func:`_dip`), whose region's edges are kinks too. A kink
+    margin, at most half the larger of theirs, searched for another state (:func:`_dip`), whose
+    region's edges are kinks too (a margin convex between the probes stays above twice the probe's
+    less the larger neighbour's: a dip shallower than that cannot reach another state). A kink
     left inside a stretch costs the adaptive rule a split at it (:func:`inner_integral`).
 
     A break point between two stretches probed in one and the same state is dropped where its curve
@@ -273,7 +275,7 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
                     kinks[nk] = _kink(x, ys[i - 1], ys[i], sts[i - 1], sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
                     nk += 1
                 elif (i < n and sts[i + 1] == sts[i] and MARGIN_TOL < gaps[i] < gaps[i - 1]
-                      and gaps[i] <= gaps[i + 1] and math.isfinite(gaps[i - 1]) and math.isfinite(gaps[i + 1])):
+                      and gaps[i] <= gaps[i + 1] and 2.0 * gaps[i] <= max(gaps[i - 1], gaps[i + 1])):
                     y = _dip(x, ys[i - 1], ys[i], ys[i + 1], gaps[i], sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
                     if not math.isnan(y):  # a region the probes stepped over: its two edges
                         s1 = _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)

@@ -186,7 +186,8 @@ class BRepEngine:
 
     # -- one CL -----------------------------------------------------------------------------------
     def step(self, index: int, move: Move, tool: MillingTool, feed_angle: float) -> EngagementMap:
-        """Process one CL segment; never raises for kernel trouble (the map says FAILED).
+        """Process one CL segment (its map says ``engine="brep"``); never raises for kernel trouble
+        (the map says FAILED).
 
         ``timings_ms`` holds the wall time of each stage and their ``total`` (ms).
         """
@@ -199,7 +200,7 @@ class BRepEngine:
             m = EngagementMap(**cl_base(cl), status=CLStatus.FAILED, reason=f"kernel error: {exc}")
         timings = dict(m.timings_ms)
         timings["total"] = (time.perf_counter() - t0) * 1e3
-        return replace(m, timings_ms=tuple(timings.items()))
+        return replace(m, timings_ms=tuple(timings.items()), engine=EngineKind.BREP.value)
 
     def _step(self, cl: CL) -> EngagementMap:
         outcome, contacts = self.cut(*cl)

@@ -422,7 +422,8 @@ class ParallelBRepEngine:
             self.removed_total += outcome.removed
             # before the yield: whoever gets this CL sees the workpiece after it
             self._next = index + 1
-            yield engagement_map(cl, outcome, plan, arcs, self.options.slice_height, self.options.min_chip_thickness)
+            yield replace(engagement_map(cl, outcome, plan, arcs, self.options.slice_height,
+                                         self.options.min_chip_thickness), engine=EngineKind.BREP.value)
 
     # -- internals --------------------------------------------------------------------------------------
     def _seed(self, toolpath: Toolpath, default_tool: MillingTool | None, start_at: int) -> None:

@@ -414,6 +414,7 @@ def test_tapered_ball_in_a_v_groove_closed_form(path, engine):
     _, maps = run(moves, {1: tool, 2: vbit}, stock, engine, slice_height=0.25, min_chip_thickness=0.0,
                   max_segment_length=10.0)
     last = min(maps[-12:], key=lambda m: math.hypot(*m.position[:2]))  # the second pass's CL ending at the middle
+    assert last.engine == engine(EngineOptions()).kind.value  # each engine's maps say which made them
     cot_b, cot_g = 1 / math.tan(b), 1 / math.tan(g)
     yj, zj = r * math.cos(b), r * (1 - math.sin(b))  # where the cone meets the ball (mm from the axis, above the tip)
     yc = (Dv - d + zj - yj * cot_b) / (cot_g - cot_b)  # where the groove's side meets the cone
