@@ -41,7 +41,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.base import EngineKind, EngineOptions
 from fusioncut.errors import FusionCutError, InputError
 from fusioncut.extras import require
 from fusioncut.io.job import (Job, StockSpec, job_options, load_job, make_options, program_job, stock_entry,
@@ -268,6 +268,9 @@ class Run:
         from fusioncut.runner import CHECKPOINT_DIR
 
         result = self.wait()
+        if (self.results().options or {}).get("engine") == EngineKind.ANALYTIC.value:
+            raise FusionCutError(f"{self.out}: the analytic engine ran this job and keeps no B-Rep workpiece; ask "
+                                 "for engine='brep' to have one")
         engine = BRepEngine(self.options)
         if result.interrupted or engine.load_checkpoint(self.out / CHECKPOINT_DIR) is None:
             raise FusionCutError(f"{self.out}: the run left no final workpiece (see its log)")

@@ -101,6 +101,12 @@ def test_the_ipw_is_the_workpiece_after_the_last_cl(slot):
     assert abs(volume(shape) - run.result.final_volume) < 1e-9 * 6000
 
 
+def test_an_analytic_run_says_it_has_no_workpiece(slot):
+    run = fc.simulate(slot, stock=STOCK, tools=TOOLS, options=replace(OPTIONS, engine="analytic"))
+    with pytest.raises(fc.FusionCutError, match="the analytic engine ran this job and keeps no B-Rep workpiece"):
+        run.ipw()
+
+
 def test_a_toolpath_in_memory_and_the_program_file_give_the_same_maps(slot):
     toolpath = fc.read_toolpath(slot, TOOLS)
     from_memory = fc.simulate(toolpath, stock=STOCK, tools=TOOLS, options=OPTIONS).results()
