@@ -459,8 +459,6 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
                 if m is None:
                     break
                 engine_state = m.cl_index
-                if not m.engine:  # an engine that does not say: every CL of it is its own
-                    m = replace(m, engine=ran)
                 writer.add(m, length_mm=segments[m.cl_index].length, spindle_rpm=segments[m.cl_index].spindle_rpm)
                 recorded = m.cl_index
                 ops.setdefault(m.operation, OperationSummary(m.operation)).add(m)

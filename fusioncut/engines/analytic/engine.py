@@ -108,7 +108,8 @@ class AnalyticEngine:
     _index: SweepIndex | None = field(default=None, init=False, repr=False)
     _tools: ProfileTable = field(default_factory=ProfileTable, init=False, repr=False)
     _saved_sweeps: np.ndarray | None = field(default=None, init=False, repr=False)
-    _done: list[CL] = field(default_factory=list, init=False, repr=False)  # the CLs indexed, in order (.fallback)
+    # the CLs indexed, in order, with their footprint boxes (.fallback builds a local workpiece of them)
+    _done: list[tuple[CL, tuple[float, float, float, float]]] = field(default_factory=list, init=False, repr=False)
 
     @property
     def kind(self) -> EngineKind:
@@ -209,8 +210,7 @@ class AnalyticEngine:
     def index_only(self, cl: CL) -> None:
         """Take CL ``cl`` as done without computing it: its sweep is indexed, nothing is counted."""
         profile = lower_profile(cl.tool)
-        self._index_of(profile).add(*sweep_row(cl.move, profile, self._tools.index_of(profile)))
-        self._done.append(cl)
+        self._take(cl, profile, *sweep_row(cl.move, profile, self._tools.index_of(profile)))
 
     def record(self, cl: CL, m: EngagementMap) -> None:
         """Take CL ``cl`` as done by another engine on the same path (a parallel worker): its sweep
@@ -243,8 +243,13 @@ class AnalyticEngine:
             m = self._fallback(cl, f"{type(exc).__name__}: {exc}")
             timings = {**dict(m.timings_ms), "total": (time.perf_counter() - t0) * 1e3}
             m = replace(m, timings_ms=tuple(timings.items()))
-        self._done.append(cl)
         return m
+
+    def _take(self, cl: CL, profile: LowerProfile, row: np.ndarray, box: tuple[float, float, float, float],
+              z_low: float) -> None:
+        """Take CL ``cl``'s sweep (``row``, footprint ``box``, lowest tip ``z_low``) as cut."""
+        self._index_of(profile).add(row, box, z_low)
+        self._done.append((cl, box))
 
     def _fallback(self, cl: CL, why: str) -> EngagementMap:
         """CL ``cl`` by :func:`.fallback.brep_fallback` (the analytic step raised ``why``), its sweep
@@ -259,12 +264,8 @@ class AnalyticEngine:
         except Exception as exc:  # noqa: BLE001 - no sweep to index: this CL fails, the run goes on
             return EngagementMap(**cl_base(cl), status=CLStatus.FAILED, engine=EngineKind.ANALYTIC.value,
                                  reason=f"analytic engine: {why}; its sweep cannot be built: {exc}")
-        earlier = []
-        for e in self._done:
-            p = lower_profile(e.tool)
-            earlier.append((e, sweep_row(e.move, p, self._tools.index_of(p))[1]))
-        m = brep_fallback(cl, box, earlier, self.stock, self.options, why)
-        self._index_of(profile).add(row, box, z_low)
+        m = brep_fallback(cl, box, self._done, self.stock, self.options, why)
+        self._take(cl, profile, row, box, z_low)
         self.removed_total += m.removed_volume
         return m
 
@@ -324,7 +325,7 @@ class AnalyticEngine:
                                  shank_area=shank_area)
         m = engagement_map(cl, outcome, heights, arcs, self.options.slice_height,
                            self.options.min_chip_thickness)
-        index.add(row, box, z_low)  # the state changes last: a step that raised left it as it was
+        self._take(cl, profile, row, box, z_low)  # the state changes last: a step that raised left it as it was
         self.removed_total += removed
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))

@@ -101,9 +101,13 @@ def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     of the sweep giving ``h``, or -1 for the stock's top) + (1 where ``L`` is below the stock's
     bottom). Within a stretch of one state the removed height is smooth."""
     v, cause, own = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-    if v <= 0.0:
-        return 0
-    return 3 + 2 * cause + (1 if own < zb else 0)
+    return _code(v, cause, own, zb)
+
+
+@njit(cache=True)
+def _code(v, cause, own, zb):
+    """:func:`_state`'s code of a removed height ``v`` given by sweep ``cause`` over ``L = own``."""
+    return 0 if v <= 0.0 else 3 + 2 * cause + (1 if own < zb else 0)
 
 
 @njit(cache=True)
@@ -135,7 +139,7 @@ def _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             h2 = h
     if h1 <= low:
         return 0, low - h1
-    return 3 + 2 * cause + (1 if own < zb else 0), min(h1 - low, h2 - h1, abs(own - zb))
+    return _code(h1 - low, cause, own, zb), min(h1 - low, h2 - h1, abs(own - zb))
 
 
 @njit(cache=True)
@@ -401,7 +405,7 @@ def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb, change):
         if v > 0.0:
             _band_overlaps(max(own, zb), v, edges, kb, wk * w)
         ys[i] = y
-        sts[i] = 0 if v <= 0.0 else 3 + 2 * cause + (1 if own < zb else 0)
+        sts[i] = _code(v, cause, own, zb)
     order = np.argsort(ys)
     change[2] = -1.0
     for i in range(14):
