@@ -15,9 +15,14 @@ horizontal piece (a flat end mill's end face) has no angular extent and is not c
 B-Rep engine's contact faces leave it out.
 
 ``W`` jumps where an arc appears or vanishes (at the stock's top, at an earlier level pass's
-floor) and bends where an arc's end passes an earlier sweep's edge. The jumps at known heights
-(the slice bands' edges, the stock's top and the earlier sweeps' tip heights) start the
-integral's parts; within them it is adaptive Gauss-Kronrod (7, 15) with a global error budget
+floor) and bends where what bounds an arc's end changes (it passes from one earlier sweep's surface
+to another's, or leaves the front's limit). ``width(z)`` gives ``W`` with the **shape** of the
+arcs: their number and the causes of their ends. The jumps at known heights (the slice bands'
+edges, the stock's top and the earlier sweeps' tip heights) start the integral's parts; a part
+whose rule nodes see more than one shape is split where the shape changes, found by bisection to
+:data:`MIN_PART` where the number of arcs changes (a jump) and to :data:`KINK_PART` of the part where only
+the causes do (a kink: a split that far off costs the rule an error of the order of its square).
+Within the parts it is adaptive Gauss-Kronrod (7, 15) with a global error budget
 (QUADPACK's QAG and its error estimate from the two rules and the integrand's spread about its
 mean, as :mod:`.volume`): the part with the largest estimate is halved until the
 estimates add up to ``rel_tol`` of the area, parts reach :data:`MIN_PART`, or :data:`MAX_EVALS`
@@ -34,6 +39,9 @@ import numpy as np
 from fusioncut.engines.analytic.volume import _WG, _WK, _XK, _error
 
 MIN_PART = 1e-9  # along the generating curve (mm, or rad of a corner's angle)
+KINK_PART = 1e-6  # the place of a kink of W (a change of what bounds an arc's end), in parts of its part's
+# length: well inside the rule's nodes nearest the part's ends (5e-5 of it), so that the parts either side
+# do not see the change again
 MAX_EVALS = 600  # evaluations of W(z) one CL's area may take
 _LINE = 0.0
 # Gauss-Kronrod (7, 15) on [-1, 1] (:mod:`.volume`'s nodes): the Kronrod nodes, 0 among them, and
@@ -90,52 +98,54 @@ def surface_pieces(pieces: np.ndarray, z_top: float) -> list[SurfacePiece]:
     return [p for p in out if p.u1 > p.u0]
 
 
-def contact_area(width: Callable[[float], tuple[float, int]], pieces: np.ndarray, z_lo: float, z_hi: float,
-                 breaks: Sequence[float], rel_tol: float = 1e-7) -> tuple[float, float]:
+def contact_area(width: Callable[[float], tuple[float, tuple[int, int]]], pieces: np.ndarray, z_lo: float,
+                 z_hi: float, breaks: Sequence[float], rel_tol: float = 1e-7) -> tuple[float, float]:
     """(area, error estimate) in mm² of the contact between heights ``z_lo`` and ``z_hi`` (mm above
-    the tip); ``width(z)`` is ``(W(z), the number of arcs)`` (rad) and ``breaks`` the heights where
-    ``W`` may jump."""
+    the tip); ``width(z)`` is ``(W(z) in rad, the arcs' shape: (their number, a code of their ends'
+    causes))`` and ``breaks`` the heights where ``W`` may jump."""
     if z_hi <= z_lo:
         return 0.0, 0.0
     parts: list[tuple[float, float, float, float, SurfacePiece]] = []  # (-err, a, b, value, piece)
     evals = 0
 
-    def at(p: SurfacePiece, u: float) -> tuple[float, int]:
+    def at(p: SurfacePiece, u: float) -> tuple[float, tuple[int, int]]:
         nonlocal evals
         evals += 1
         d, z, ds = p.at(u)
-        w, n = width(z)
-        return d * ds * w, n
+        w, shape = width(z)
+        return d * ds * w, shape
 
-    def event(p: SurfacePiece, a: float, b: float, na: int) -> float:
-        """The parameter in (a, b) where the arc count changes from ``na``, to MIN_PART."""
-        while b - a > MIN_PART:
+    def event(p: SurfacePiece, a: float, b: float, sa: tuple[int, int], sb: tuple[int, int], kink: float) -> float:
+        """The parameter in (a, b) where the shape changes from ``sa`` (at ``a``; ``sb`` at ``b``): to
+        MIN_PART where the number of arcs changes, to ``kink`` where only their ends' causes do."""
+        while b - a > (MIN_PART if sa[0] != sb[0] else kink):
             m = 0.5 * (a + b)
-            if at(p, m)[1] == na:
+            sm = at(p, m)[1]
+            if sm == sa:
                 a = m
             else:
-                b = m
+                b, sb = m, sm
         return 0.5 * (a + b)
 
     def add(p: SurfacePiece, a: float, b: float) -> None:
-        """Rule on [a, b], or, where the arc count differs between its nodes, the parts either side
+        """Rule on [a, b], or, where the arcs' shape differs between its nodes, the parts either side
         of the first change."""
         if b - a <= MIN_PART:
             return
         n = len(_NODES)
-        fk, us, counts = np.empty(n), np.empty(n), np.empty(n, dtype=np.int64)
+        fk, us, shapes = np.empty(n), np.empty(n), [(0, 0)] * n
         for i in range(n):
             # y = a + (b - a) s^2 (3 - 2 s): a square root at either end (an arc born from a point) is
             # smooth in s
             t = 0.5 * (_NODES[i] + 1.0)
             us[i] = a + (b - a) * t * t * (3.0 - 2.0 * t)
-            f, counts[i] = at(p, us[i])
+            f, shapes[i] = at(p, us[i])
             fk[i] = f * 3.0 * (b - a) * t * (1.0 - t)
         order = np.argsort(us)
-        change = np.flatnonzero(counts[order][1:] != counts[order][:-1])
-        if len(change):
-            j = order[change[0]]
-            c = event(p, us[j], us[order[change[0] + 1]], int(counts[j]))
+        change = [k for k in range(n - 1) if shapes[order[k]] != shapes[order[k + 1]]]
+        if change and evals < MAX_EVALS:
+            i, j = order[change[0]], order[change[0] + 1]
+            c = event(p, us[i], us[j], shapes[i], shapes[j], max(KINK_PART * (b - a), MIN_PART))
             add(p, a, c)
             add(p, c, b)
             return

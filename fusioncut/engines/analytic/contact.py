@@ -43,6 +43,10 @@ N_SCAN = 720
 ANGLE_TOL = 1e-10  # rad
 MANY = 12  # a grid cell holding more sweeps leaves out the dominated ones (.cells.relevant_sweeps)
 GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
+# end_cause's codes beside material_blocker's (-1 none, -2..-7 the stock's faces, >= 0 earlier sweeps)
+FRONT_LIMIT = -8
+OWN_TURN = -9
+ENGAGED = -10
 TWO_PI = 2.0 * math.pi
 _GOLDEN = 0.6180339887498949
 
@@ -60,12 +64,18 @@ def _cell(px, py, G, gstart):
 
 
 @njit(cache=True)
-def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
-    """True where the stock held material at (px, py, pz) before the CL: earlier sweeps ``C`` (their
-    footprint boxes ``CB``; tool tables ``PP``, ``NPC``, ``RR``; ``stock`` = x0, y0, z0, x1, y1, z1),
-    of which only those the grid cell of the point lists are looked at (:func:`sweep_grid`)."""
-    if not (stock[0] < px < stock[3] and stock[1] < py < stock[4] and stock[2] < pz < stock[5]):
-        return False
+def material_blocker(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    """What keeps (px, py, pz) out of the material before the CL: -1 nothing (the stock held
+    material there), -2 - f the stock's face f (x0, y0, z0, x1, y1, z1 = 0..5) it is not strictly
+    inside of, else the row in ``C`` of an earlier sweep whose lower surface is at or below it
+    (footprint boxes ``CB``; tool tables ``PP``, ``NPC``, ``RR``; ``stock`` = x0, y0, z0, x1, y1, z1).
+    Only the sweeps the grid cell of the point lists are looked at (:func:`sweep_grid`)."""
+    p = (px, py, pz)
+    for f in range(3):
+        if p[f] <= stock[f]:
+            return -2 - f
+        if p[f] >= stock[3 + f]:
+            return -5 - f
     first, end = _cell(px, py, G, gstart)
     for q in range(first, end):
         j = gitems[q]
@@ -77,8 +87,14 @@ def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
         if sweep_floor(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) > pz + eps:
             continue  # its lower surface is above the point everywhere near it
         if sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) <= pz + eps:
-            return False
-    return True
+            return j
+    return -1
+
+
+@njit(cache=True)
+def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    """True where the stock held material at (px, py, pz) before the CL (:func:`material_blocker`)."""
+    return material_blocker(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems) == -1
 
 
 def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.ndarray, R: float, C: np.ndarray,
@@ -102,10 +118,16 @@ def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.
 
 
 @njit(cache=True)
+def _ahead(theta, vx, vy, lift):
+    """The front condition's closed-form part at machine angle ``theta``: ``u . v_xy >= lift``."""
+    g = math.cos(theta) * vx + math.sin(theta) * vy - lift
+    return g >= -1e-12 * (abs(vx) + abs(vy) + abs(lift))
+
+
+@njit(cache=True)
 def _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps):
     """The front condition at machine angle ``theta`` (module docstring); ``lift = rho'(zs) v_z``."""
-    g = math.cos(theta) * vx + math.sin(theta) * vy - lift
-    if g < -1e-12 * (abs(vx) + abs(vy) + abs(lift)):
+    if not _ahead(theta, vx, vy, lift):
         return False
     if S[0] == 0.0:
         return True
@@ -114,10 +136,49 @@ def _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps):
 
 @njit(cache=True)
 def _engaged(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    """Engaged at machine angle ``theta``: the closed-form front test first (it rules out the back
+    half of a level move's circle at no cost), then the material, then an arc's earlier turns."""
+    if not _ahead(theta, vx, vy, lift):
+        return False
     px, py = ex + r * math.cos(theta), ey + r * math.sin(theta)
     if not material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
         return False
-    return _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps)
+    return S[0] == 0.0 or arc_depth(S, P, R, px, py, pz) >= -eps
+
+
+@njit(cache=True)
+def end_cause(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    """Why machine angle ``theta`` (just outside an engaged arc) is not engaged: ``FRONT_LIMIT``
+    off the front's closed-form half, a code of :func:`material_blocker` (a stock face or an
+    earlier sweep's row), ``OWN_TURN`` inside the tool at an arc's earlier position, ``ENGAGED``
+    where it is engaged after all. An arc's span bends where the cause of one of its ends changes."""
+    if not _ahead(theta, vx, vy, lift):
+        return FRONT_LIMIT
+    px, py = ex + r * math.cos(theta), ey + r * math.sin(theta)
+    b = material_blocker(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
+    if b >= 0:
+        b = _lowest_sweep(px, py, C, CB, PP, NPC, RR, eps, G, gstart, gitems)
+    if b != -1:
+        return b
+    return OWN_TURN if S[0] != 0.0 and arc_depth(S, P, R, px, py, pz) < -eps else ENGAGED
+
+
+@njit(cache=True)
+def _lowest_sweep(px, py, C, CB, PP, NPC, RR, eps, G, gstart, gitems):
+    """The row of the earlier sweep whose lower surface is lowest at (px, py) among those the
+    point's grid cell lists, the first row among surfaces within 1e-9 mm of it (consecutive moves'
+    sweeps share the tool at their joint: the same surface there must give the same cause)."""
+    best, low = -1, math.inf
+    first, end = _cell(px, py, G, gstart)
+    for q in range(first, end):
+        j = gitems[q]
+        if px < CB[j, 0] - eps or px > CB[j, 2] + eps or py < CB[j, 1] - eps or py > CB[j, 3] + eps:
+            continue
+        k = int(C[j, 12])
+        h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps)
+        if h < low - 1e-9 or (h <= low + 1e-9 and j < best):
+            best, low = j, min(h, low)
+    return best
 
 
 @njit(cache=True)
@@ -137,8 +198,9 @@ def front_limits(vx, vy, lift):
 @njit(cache=True)
 def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems, n_scan):
     """Engaged machine arcs (start, span) in rad, counter-clockwise, of the slice ``zs`` mm above the
-    tip (radius ``r``, ``drho = rho'(zs)``) of the tool at the end of sweep ``S``. An (n, 2) array;
-    one row (0, 2 pi) when engaged all round."""
+    tip (radius ``r``, ``drho = rho'(zs)``) of the tool at the end of sweep ``S``, with the
+    :func:`end_cause` of either end: an (n, 4) array (start, span, start's cause, end's cause); one
+    row (0, 2 pi, ENGAGED, ENGAGED) when engaged all round."""
     ex, ey, ez = S[4], S[5], S[6]
     vx, vy, vz = end_velocity(S)
     lift = 0.0 if vz == 0.0 else drho * vz
@@ -154,7 +216,8 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
     on = np.empty(n, dtype=np.bool_)
     for i in range(n):
         on[i] = _engaged(th[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
-    out = np.empty((n, 2))
+    out = np.empty((n, 4))
+    out[:, 2:] = ENGAGED
     if on.all():
         out[0, 0], out[0, 1] = 0.0, TWO_PI
         return out[:1]
@@ -163,6 +226,8 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
     # the changes between neighbours (cyclic), each bisected: rises start an arc, falls end one
     starts = np.empty(n)
     ends = np.empty(n)
+    start_cause = np.empty(n)
+    end_cause_ = np.empty(n)
     ns = 0
     ne = 0
     for i in range(n):
@@ -181,11 +246,15 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
             else:
                 b = m
         edge = (0.5 * (a + b)) % TWO_PI
+        cause = end_cause((b if on[i] else a) % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR,
+                          stock, eps, G, gstart, gitems)
         if on[i]:
             ends[ne] = edge
+            end_cause_[ne] = cause
             ne += 1
         else:
             starts[ns] = edge
+            start_cause[ns] = cause
             ns += 1
     # a start within GAP_TOL after an end closes a gap of a touching point (the tool's circle tangent
     # to a face of the stock or to an earlier sweep's wall): the arcs are one
@@ -206,11 +275,13 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
         if not keep_s[i]:
             continue
         best = 10.0
+        cause = ENGAGED
         for j in range(ne):
             span = (ends[j] - starts[i]) % TWO_PI
             if keep_e[j] and span < best:
                 best = span
-        out[k, 0], out[k, 1] = starts[i], best
+                cause = end_cause_[j]
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = starts[i], best, start_cause[i], cause
         k += 1
     return out[:k]
 

@@ -55,11 +55,11 @@ import numpy as np
 
 from fusioncut.engines.analytic.area import contact_area
 from fusioncut.engines.analytic.cells import relevant_sweeps
-from fusioncut.engines.analytic.contact import N_SCAN, front_limits, slice_arcs, slice_margin, sweep_grid
+from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_radius,
                                                profile_radius_slope)
-from fusioncut.engines.analytic.sweeps import NCOL, arc_row, end_velocity, line_row
+from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
@@ -391,31 +391,30 @@ class AnalyticEngine:
         return float(total), tuple(float(v) for v in bands)
 
 
-def _arcs_at(args: tuple, z: float) -> list[tuple[float, float]]:
-    """The engaged machine arcs (start, span), rad, of the slice ``z`` mm above the tip
-    (:func:`.contact.slice_arcs`; ``args`` as :func:`contact_range` takes them)."""
+def _found(args: tuple, z: float) -> np.ndarray:
+    """:func:`.contact.slice_arcs` of the slice ``z`` mm above the tip (``args`` as
+    :func:`contact_range` takes them): rows (start, span, start's cause, end's cause)."""
     pieces = args[1]
-    found = slice_arcs(args[0], pieces, args[2], z, profile_radius(pieces, z), profile_radius_slope(pieces, z),
-                       *args[3:], N_SCAN)
-    return [(float(a), float(w)) for a, w in found]
+    return slice_arcs(args[0], pieces, args[2], z, profile_radius(pieces, z), profile_radius_slope(pieces, z),
+                      *args[3:], N_SCAN)
 
 
-def _width(args: tuple, z: float) -> tuple[float, int]:
-    """The engaged arcs' total span (rad) at ``z`` mm above the tip, and a code of their shape: the
-    contact area's integrand (:func:`.area.contact_area`), whose parts end where the code changes.
-    The code counts the arcs, the whole circle apart, and the arc ends that are the front's closed-
-    form limits (:func:`.contact.front_limits`): where an end leaves the front's limit for the
-    material's edge (an earlier pass's surface cutting into the front half) the span has a
-    square-root onset, which a part's end makes smooth."""
-    arcs = _arcs_at(args, z)
-    if len(arcs) == 1 and arcs[0][1] >= 2 * math.pi:
-        return 2 * math.pi, -1
-    row, pieces = args[0], args[1]
-    vx, vy, vz = end_velocity(row)
-    lim = front_limits(vx, vy, 0.0 if vz == 0.0 else profile_radius_slope(pieces, z) * vz)
-    on_front = sum(1 for a, w in arcs for end in (a, a + w) for f in lim
-                   if abs((end - f + math.pi) % (2 * math.pi) - math.pi) <= 1e-9)
-    return sum(w for _, w in arcs), len(arcs) + 1000 * on_front
+def _arcs_at(args: tuple, z: float) -> list[tuple[float, float]]:
+    """The engaged machine arcs (start, span), rad, of the slice ``z`` mm above the tip."""
+    return [(float(a), float(w)) for a, w, _, _ in _found(args, z)]
+
+
+def _width(args: tuple, z: float) -> tuple[float, tuple[int, int]]:
+    """The engaged arcs' total span (rad) at ``z`` mm above the tip, and their shape: the contact
+    area's integrand (:func:`.area.contact_area`), whose parts end where the shape changes. The
+    shape is the number of arcs (-1: the whole circle) and a code of what bounds their ends
+    (:func:`.contact.end_cause`: the front's limit, a stock face, an earlier sweep): where an end
+    passes from one to another the span bends (from a front limit to an earlier pass's surface, with
+    a square-root onset), which a part's end makes smooth."""
+    found = _found(args, z)
+    if len(found) == 1 and found[0, 1] >= 2 * math.pi:
+        return 2 * math.pi, (-1, 0)
+    return float(found[:, 1].sum()), (len(found), hash(tuple(sorted(found[:, 2:].ravel().tolist()))))
 
 
 def tiles(x0: float, y0: float, x1: float, y1: float, size: float) -> list[tuple[float, float, float, float]]:

@@ -1,0 +1,54 @@
+"""The contact area's integral over the tool's surface (fusioncut.engines.analytic.area) and the
+causes of the engaged arcs' ends it splits at (fusioncut.engines.analytic.contact)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fusioncut.engines.analytic.area import contact_area
+from fusioncut.engines.analytic.contact import material_blocker
+from fusioncut.engines.analytic.profile import lower_profile
+from fusioncut.engines.analytic.sweeps import line_row
+from fusioncut.model import FlatEndMill
+
+R = 2.0
+FLAT = lower_profile(FlatEndMill(number=1, diameter=2 * R, flute_length=10.0)).pieces
+
+
+@pytest.mark.parametrize("kink", [0.3137, 0.5, 0.9001])
+def test_a_kink_the_arcs_shape_announces_is_split_at_and_integrated_to_round_off(kink):
+    """W(z) = 1 rad up to the kink, then rising by 1 rad/mm: the flat end mill's flank (d = R) has
+    the area R * integral of W. Told where the ends' causes change, the rule splits there and is
+    exact on both sides (linear W), with a few dozen evaluations."""
+    calls = []
+
+    def width(z: float) -> tuple[float, tuple[int, int]]:
+        calls.append(z)
+        return 1.0 + max(0.0, z - kink), (1, 0 if z < kink else 1)
+
+    area, err = contact_area(width, FLAT, 0.0, 1.0, [], rel_tol=1e-12)
+    expected = R * (1.0 + 0.5 * (1.0 - kink) ** 2)
+    assert area == pytest.approx(expected, rel=1e-11)
+    assert err <= 1e-12 * expected
+    assert len(calls) < 120
+
+
+def test_material_blocker_names_the_stock_face_or_the_earlier_sweep():
+    """-1 in the material; -2 - f outside the stock's face f (x0, y0, z0 = 0..2; x1, y1, z1 = 3..5);
+    the row of the earlier sweep whose lower surface is at or below the point."""
+    tool = lower_profile(FlatEndMill(number=1, diameter=2 * R, flute_length=10.0))
+    stock = np.array([0.0, 0.0, -10.0, 50.0, 50.0, 0.0])
+    row = line_row((10.0, 10.0, -2.0), (40.0, 10.0, -2.0), 0)  # a slot 2 mm deep along y = 10
+    C = row[None, :]
+    CB = np.array([[10.0 - R, 10.0 - R, 40.0 + R, 10.0 + R]])
+    PP, NPC, RR = tool.pieces[None, :, :], np.array([len(tool.pieces)]), np.array([R])
+    grid = (np.array([0.0, 0.0, 50.0, 1.0]), np.array([0, 1]), np.array([0]))
+
+    def blocker(x, y, z):
+        return material_blocker(x, y, z, C, CB, PP, NPC, RR, stock, 1e-10, *grid)
+
+    assert blocker(25.0, 20.0, -1.0) == -1  # beside the slot
+    assert blocker(25.0, 10.0, -1.0) == 0  # in the slot
+    assert blocker(25.0, 10.0, -3.0) == -1  # below its floor
+    assert [blocker(-1.0, 20.0, -1.0), blocker(25.0, -1.0, -1.0), blocker(25.0, 20.0, -11.0)] == [-2, -3, -4]
+    assert [blocker(51.0, 20.0, -1.0), blocker(25.0, 51.0, -1.0), blocker(25.0, 20.0, 1.0)] == [-5, -6, -7]
