@@ -8,6 +8,7 @@ import pytest
 from fusioncut.engines.analytic.engine import AnalyticEngine, UnsupportedStock
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
+from fusioncut.engines.cl_maps import cl_sequence
 from fusioncut.model import (AptCutter, AptParameters, ArcMove, BallEndMill, BoxStock, BullNoseEndMill, ChamferMill,
                              CLStatus, CylinderStock, FlatEndMill, LinearMove, SpindleDirection, Toolpath)
 
@@ -213,6 +214,44 @@ def test_helical_bore_removes_the_closed_form_pocket():
     # material all along the front
     helix = [m for m in maps[1:] if m.start[2] != m.position[2] and m.position[2] < 0]
     assert helix and all(m.status == CLStatus.ENGAGED and m.removed_volume > 0 for m in helix)
+
+
+@pytest.mark.parametrize("decimals", [None, 3])
+def test_helical_bore_in_solid_closed_form_slices(decimals):
+    """A flat end mill (R 6) down a helix of radius 4 (2.25 turns, pitch p = 2 mm) into solid, the
+    last CL's slices. A point q of the slice h above the tip, on the front half, at distance D from
+    the helix's axis, was last under the tool a turn earlier, at the end of the angle 2 alpha over
+    which the path's centre stays within R of it (cos alpha = (D² + rho² - R²) / (2 D rho)); the tool's
+    bottom was then p (1 - alpha / pi) above the tip's height now. So q holds material iff h is below
+    that: iff D² - 2 rho c D + rho² - R² > 0 with c = -cos(pi h / p), that is iff its machine angle
+    lies within acos(kappa) of the centre's outward direction, kappa = (D*² - rho² - R²) / (2 rho R)
+    with D* the positive root. On the front half (the feed direction is the outward direction less
+    90 degrees, clockwise) that is the immersion interval (0, acos(kappa)). With points rounded to
+    3 decimals as posts write them, the radius of the helix's end differs by up to a micron."""
+    R, rho, p, turns = 6.0, 4.0, 2.0, 2.25
+    top, z_end = 0.5, 0.5 - p * turns
+
+    def pt(v):
+        return v if decimals is None else tuple(round(c, decimals) for c in v)
+
+    start, end = pt((rho, 0.0, top)), pt((0.0, -rho, z_end))
+    moves = [feed(pt((rho, 0.0, 5.0)), start),
+             ArcMove(start, end, center=pt((0.0, 0.0, top)), clockwise=True, turns=2, feed=800.0, tool=1)]
+    tp = Toolpath(tuple(moves), {1: FlatEndMill(2 * R, 20.0)})
+    opts = EngineOptions(slice_height=0.25, max_segment_length=2.0)
+    last = len(list(cl_sequence(tp, opts))) - 1
+    eng = AnalyticEngine(opts)
+    eng.start(BoxStock((-20, -20, -10), (20, 20, 0)))
+    m = next(eng.process(tp, start_at=last))
+    # the contact's top is a tangency (q at D = R + rho, alpha = 0) where the material margin peaks
+    # as a square root of the angle: its peak, found to ~1e-12 rad, is ~1e-6 mm low (contact_range)
+    assert m.ap == pytest.approx(p, abs=1e-5)
+    for s in m.slices:
+        c = -math.cos(math.pi * s.z / p)
+        d_star = rho * c + math.sqrt(rho * rho * c * c - rho * rho + R * R)
+        kappa = (d_star ** 2 - rho * rho - R * R) / (2 * rho * R)
+        expected = [] if s.z >= p else [(0.0, math.degrees(math.acos(kappa)))]
+        assert_same_intervals(intervals(s), expected, 0.005 if decimals else ANGLE_TOL)
 
 
 def test_a_wall_only_grazed_is_no_engagement():
