@@ -57,8 +57,8 @@ from fusioncut.engines.analytic.area import contact_area
 from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
-from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_radius,
-                                               profile_radius_slope)
+from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
+                                               profile_radius, profile_radius_slope)
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
@@ -312,7 +312,7 @@ class AnalyticEngine:
             flute_area = shank_area = 0.0
             if z_range is not None:
                 ez = row[6]
-                breaks = [v - ez for v in levels]
+                breaks = _area_breaks(shaping, PP, NPC, self.stock[5] - ez, ez)
                 flute_area = contact_area(lambda z: _width(args, z), profile.pieces, *z_range, breaks)[0]
                 shank = contact_range(args, tool.flute_length, math.inf, dz, levels) \
                     if z_range[1] >= tool.flute_length else None
@@ -415,6 +415,24 @@ def _width(args: tuple, z: float) -> tuple[float, tuple[int, int]]:
     if len(found) == 1 and found[0, 1] >= 2 * math.pi:
         return 2 * math.pi, (-1, 0)
     return float(found[:, 1].sum()), (len(found), hash(tuple(sorted(found[:, 2:].ravel().tolist()))))
+
+
+def _area_breaks(shaping: np.ndarray, PP: np.ndarray, NPC: np.ndarray, top: float, ez: float) -> list[float]:
+    """Heights (mm above the tip at machine height ``ez``) where the engaged span ``W`` may jump or
+    bend at a known height: the stock's top (``top``), and for each earlier level sweep of
+    ``shaping`` (tool tables ``PP``, ``NPC``) its tip plus each height where its profile's pieces
+    meet: the region below such a sweep goes from none to its whole footprint at a flat bottom (a
+    jump), and its edge's curvature jumps where a ball or corner meets the straight flank. Elsewhere
+    a sweep's lowest point gives an arc born from a point (a change of the arcs' number, which
+    :func:`.area.contact_area` finds as such)."""
+    out = {top}
+    for r in shaping:
+        if r[3] != r[6]:
+            continue  # a ramp or helix: its profile's heights vary along it
+        k = int(r[12])
+        pieces = PP[k, :NPC[k]]
+        out.update(float(r[3] + profile_height(pieces, d) - ez) for d in (0.0, *pieces[:, 2]))
+    return sorted(out)
 
 
 def tiles(x0: float, y0: float, x1: float, y1: float, size: float) -> list[tuple[float, float, float, float]]:
