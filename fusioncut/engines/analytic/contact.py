@@ -43,7 +43,7 @@ N_SCAN = 720
 ANGLE_TOL = 1e-10  # rad
 MANY = 12  # a grid cell holding more sweeps leaves out the dominated ones (.cells.relevant_sweeps)
 GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
-# end_cause's codes beside material_blocker's (-1 none, -2..-7 the stock's faces, >= 0 earlier sweeps)
+# end_cause's codes beside material_blocker's stock faces (-2..-7) and the earlier sweeps' (>= 0: 2 j, 2 j + 1)
 FRONT_LIMIT = -8
 OWN_TURN = -9
 ENGAGED = -10
@@ -147,17 +147,25 @@ def _engaged(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, st
 
 
 @njit(cache=True)
-def end_cause(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
-    """Why machine angle ``theta`` (just outside an engaged arc) is not engaged: ``FRONT_LIMIT``
-    off the front's closed-form half, a code of :func:`material_blocker` (a stock face or an
-    earlier sweep's row), ``OWN_TURN`` inside the tool at an arc's earlier position, ``ENGAGED``
-    where it is engaged after all. An arc's span bends where the cause of one of its ends changes."""
+def end_cause(theta, inside, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart,
+              gitems):
+    """Why machine angle ``theta`` (just outside an engaged arc; ``inside`` just within it) is not
+    engaged: ``FRONT_LIMIT`` off the front's closed-form half, a code of :func:`material_blocker` for
+    a stock face, ``2 j`` where the end lies on the lower surface of the earlier sweep ``C[j]`` (the
+    lowest there) and ``2 j + 1`` on its wall (``inside`` is beyond its footprint), ``OWN_TURN``
+    inside the tool at an arc's earlier position, ``ENGAGED`` where it is engaged after all. An arc's
+    span bends where the cause of one of its ends changes: from one sweep to another, and where a
+    sweep's ball or corner meets its straight flank, whose curvature jumps."""
     if not _ahead(theta, vx, vy, lift):
         return FRONT_LIMIT
     px, py = ex + r * math.cos(theta), ey + r * math.sin(theta)
     b = material_blocker(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
     if b >= 0:
-        b = _lowest_sweep(px, py, C, CB, PP, NPC, RR, eps, G, gstart, gitems)
+        j = _lowest_sweep(px, py, C, CB, PP, NPC, RR, eps, G, gstart, gitems)
+        k = int(C[j, 12])
+        wall = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], ex + r * math.cos(inside), ey + r * math.sin(inside),
+                           eps) == math.inf
+        return 2 * j + (1 if wall else 0)
     if b != -1:
         return b
     return OWN_TURN if S[0] != 0.0 and arc_depth(S, P, R, px, py, pz) < -eps else ENGAGED
@@ -246,8 +254,8 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
             else:
                 b = m
         edge = (0.5 * (a + b)) % TWO_PI
-        cause = end_cause((b if on[i] else a) % TWO_PI, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR,
-                          stock, eps, G, gstart, gitems)
+        cause = end_cause((b if on[i] else a) % TWO_PI, (a if on[i] else b) % TWO_PI, vx, vy, lift, S, P, R, ex, ey,
+                          pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
         if on[i]:
             ends[ne] = edge
             end_cause_[ne] = cause
