@@ -26,7 +26,8 @@ Within the parts it is adaptive Gauss-Kronrod (7, 15) with a global error budget
 (QUADPACK's QAG and its error estimate from the two rules and the integrand's spread about its
 mean, as :mod:`.volume`): the part with the largest estimate is halved until the
 estimates add up to ``rel_tol`` of the area, parts reach :data:`MIN_PART`, or :data:`MAX_EVALS`
-evaluations of ``W`` are spent; the estimate left is returned with the area.
+evaluations of ``W`` are spent (from then on a change of shape no longer splits a part either); the
+estimate left is returned with the area.
 """
 from __future__ import annotations
 
@@ -42,7 +43,7 @@ MIN_PART = 1e-9  # along the generating curve (mm, or rad of a corner's angle)
 KINK_PART = 1e-6  # the place of a kink of W (a change of what bounds an arc's end), in parts of its part's
 # length: well inside the rule's nodes nearest the part's ends (5e-5 of it), so that the parts either side
 # do not see the change again
-MAX_EVALS = 600  # evaluations of W(z) one CL's area may take
+MAX_EVALS = 1500  # evaluations of W(z) one CL's area may take: a bound, not the usual stop (the error estimate)
 _LINE = 0.0
 # Gauss-Kronrod (7, 15) on [-1, 1] (:mod:`.volume`'s nodes): the Kronrod nodes, 0 among them, and
 # the Kronrod and Gauss weights (0 at the Kronrod-only nodes)
