@@ -17,11 +17,12 @@ B-Rep engine's contact faces leave it out.
 ``W`` jumps where an arc appears or vanishes (at the stock's top, at an earlier level pass's
 floor) and bends where what bounds an arc's end changes (it passes from one earlier sweep's surface
 to another's, or leaves the front's limit). ``width(z)`` gives ``W`` with the **shape** of the
-arcs: their number and the causes of their ends. The jumps at known heights (the slice bands'
-edges, the stock's top and the earlier sweeps' tip heights) start the integral's parts; a part
-whose rule nodes see more than one shape is split where the shape changes, found by bisection to
-:data:`MIN_PART` where the number of arcs changes (a jump) and to :data:`KINK_PART` of the part where only
-the causes do (a kink: a split that far off costs the rule an error of the order of its square).
+arcs: their number and the causes of their ends. The heights where ``W`` jumps or bends that are
+known beforehand (``breaks``: the stock's top, an earlier level sweep's floor and the heights where
+its profile's pieces meet) start the integral's parts; a part whose rule nodes see more than one
+shape is split where the shape changes, found by bisection to :data:`MIN_PART` where the number of
+arcs changes (a jump) and to :data:`KINK_PART` of the part where only the causes do (a kink: a
+split that far off costs the rule an error of the order of its square).
 Within the parts it is adaptive Gauss-Kronrod (7, 15) with a global error budget
 (QUADPACK's QAG and its error estimate from the two rules and the integrand's spread about its
 mean, as :mod:`.volume`): the part with the largest estimate is halved until the

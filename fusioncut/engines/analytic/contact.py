@@ -162,6 +162,7 @@ def end_cause(theta, inside, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NP
     b = material_blocker(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
     if b >= 0:
         j = _lowest_sweep(px, py, C, CB, PP, NPC, RR, eps, G, gstart, gitems)
+        j = j if j >= 0 else b
         k = int(C[j, 12])
         wall = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], ex + r * math.cos(inside), ey + r * math.sin(inside),
                            eps) == math.inf
