@@ -22,7 +22,7 @@ the rectangle, each inner one a tenth (so that their errors do not look like a r
 
 The integrand also bends where no footprint ends: where ``L`` meets ``h`` (the removed region's
 edge) and where the earlier sweep giving ``h`` changes. Along a line those **kinks** are found by
-probing the integrand's state between break points (at least :data:`MIN_PROBES` + 1 probes, at most
+probing the integrand's state between break points (at least :data:`N_PROBE` + 1 probes, at most
 :data:`PROBE_STEP` tool radii apart), each change located as the root of the two crossing surfaces'
 difference, and each dip of the state's margin between probes searched for a region of another
 state the probes stepped over (:func:`_with_kinks`; a thin crescent where a finishing pass grazes
@@ -44,8 +44,7 @@ from fusioncut.engines.analytic.sweeps import (brent_next, brent_start, brent_ta
                                               sweep_floor, sweep_lower)
 
 MIN_PART = 1e-9  # mm
-N_PROBE = 8  # lines between x break points, and samples along a line, a signature is probed at
-MIN_PROBES = 2  # intervals a stretch between break points is probed in for kinks, at least
+N_PROBE = 8  # samples a stretch between break points is probed at for kinks
 PROBE_STEP = 1 / 16  # tool radii: the probes along a stretch are at most this far apart
 MAX_PROBES = 64  # probes a stretch, a bound
 MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this (equal surfaces, a
@@ -242,7 +241,7 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """(``pts`` with the kinks of the removed height along the line at ``x`` added, and per stretch
     between them whether anything may be removed there). A stretch :func:`_nothing_removed` proves
     empty is kept whole; in the others the state and its margin (:func:`_probe`) are probed at even
-    samples (:data:`MIN_PROBES` + 1 at least, :data:`PROBE_STEP` tool radii apart at most), each change
+    samples (:data:`N_PROBE` + 1 at least, :data:`PROBE_STEP` tool radii apart at most), each change
     located (:func:`_kink`), and each probe in the same state as both its neighbours with a smaller
     margin, at most half the larger of theirs, searched for another state (:func:`_dip`), whose
     region's edges are kinks too (a margin convex between the probes stays above twice the probe's
@@ -266,7 +265,7 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             continue
         uniform = -1
         if b - a > 4 * KINK_TOL:
-            n = min(max(MIN_PROBES, int(math.ceil((b - a) / (PROBE_STEP * R)))), MAX_PROBES)
+            n = min(max(N_PROBE, int(math.ceil((b - a) / (PROBE_STEP * R)))), MAX_PROBES)
             ys = np.empty(n + 1)
             sts = np.empty(n + 1, dtype=np.int64)
             gaps = np.empty(n + 1)
