@@ -46,6 +46,7 @@ KINK_PART = 1e-6  # the place of a kink of W (a change of what bounds an arc's e
 # do not see the change again
 MAX_EVALS = 1500  # evaluations of W(z) one CL's area may take: a bound, not the usual stop (the error estimate)
 _LINE = 0.0
+Shape = tuple[int, tuple[float, ...]]  # the engaged arcs' number and their ends' causes (engine._width)
 # Gauss-Kronrod (7, 15) on [-1, 1] (:mod:`.volume`'s nodes): the Kronrod nodes, 0 among them, and
 # the Kronrod and Gauss weights (0 at the Kronrod-only nodes)
 _NODES = np.concatenate([_XK, -_XK[:7]])
@@ -100,24 +101,24 @@ def surface_pieces(pieces: np.ndarray, z_top: float) -> list[SurfacePiece]:
     return [p for p in out if p.u1 > p.u0]
 
 
-def contact_area(width: Callable[[float], tuple[float, tuple[int, int]]], pieces: np.ndarray, z_lo: float,
+def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarray, z_lo: float,
                  z_hi: float, breaks: Sequence[float], rel_tol: float = 1e-7) -> tuple[float, float]:
     """(area, error estimate) in mm² of the contact between heights ``z_lo`` and ``z_hi`` (mm above
-    the tip); ``width(z)`` is ``(W(z) in rad, the arcs' shape: (their number, a code of their ends'
-    causes))`` and ``breaks`` the heights where ``W`` may jump."""
+    the tip); ``width(z)`` is ``(W(z) in rad, the arcs' shape: (their number, their ends' causes))``
+    and ``breaks`` the heights where ``W`` may jump."""
     if z_hi <= z_lo:
         return 0.0, 0.0
     parts: list[tuple[float, float, float, float, SurfacePiece]] = []  # (-err, a, b, value, piece)
     evals = 0
 
-    def at(p: SurfacePiece, u: float) -> tuple[float, tuple[int, int]]:
+    def at(p: SurfacePiece, u: float) -> tuple[float, Shape]:
         nonlocal evals
         evals += 1
         d, z, ds = p.at(u)
         w, shape = width(z)
         return d * ds * w, shape
 
-    def event(p: SurfacePiece, a: float, b: float, sa: tuple[int, int], sb: tuple[int, int], kink: float) -> float:
+    def event(p: SurfacePiece, a: float, b: float, sa: Shape, sb: Shape, kink: float) -> float:
         """The parameter in (a, b) where the shape changes from ``sa`` (at ``a``; ``sb`` at ``b``): to
         MIN_PART where the number of arcs changes, to ``kink`` where only their ends' causes do."""
         while b - a > (MIN_PART if sa[0] != sb[0] else kink):
@@ -135,7 +136,7 @@ def contact_area(width: Callable[[float], tuple[float, tuple[int, int]]], pieces
         if b - a <= MIN_PART:
             return
         n = len(_NODES)
-        fk, us, shapes = np.empty(n), np.empty(n), [(0, 0)] * n
+        fk, us, shapes = np.empty(n), np.empty(n), [(0, ())] * n
         for i in range(n):
             # y = a + (b - a) s^2 (3 - 2 s): a square root at either end (an arc born from a point) is
             # smooth in s

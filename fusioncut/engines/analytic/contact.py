@@ -235,8 +235,8 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
     # the changes between neighbours (cyclic), each bisected: rises start an arc, falls end one
     starts = np.empty(n)
     ends = np.empty(n)
-    start_cause = np.empty(n)
-    end_cause_ = np.empty(n)
+    start_causes = np.empty(n)
+    end_causes = np.empty(n)
     ns = 0
     ne = 0
     for i in range(n):
@@ -259,11 +259,11 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
                           pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
         if on[i]:
             ends[ne] = edge
-            end_cause_[ne] = cause
+            end_causes[ne] = cause
             ne += 1
         else:
             starts[ns] = edge
-            start_cause[ns] = cause
+            start_causes[ns] = cause
             ns += 1
     # a start within GAP_TOL after an end closes a gap of a touching point (the tool's circle tangent
     # to a face of the stock or to an earlier sweep's wall): the arcs are one
@@ -289,8 +289,8 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
             span = (ends[j] - starts[i]) % TWO_PI
             if keep_e[j] and span < best:
                 best = span
-                cause = end_cause_[j]
-        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = starts[i], best, start_cause[i], cause
+                cause = end_causes[j]
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = starts[i], best, start_causes[i], cause
         k += 1
     return out[:k]
 

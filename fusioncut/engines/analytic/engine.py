@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusioncut.engines.analytic.area import contact_area
+from fusioncut.engines.analytic.area import Shape, contact_area
 from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
@@ -404,17 +404,17 @@ def _arcs_at(args: tuple, z: float) -> list[tuple[float, float]]:
     return [(float(a), float(w)) for a, w, _, _ in _found(args, z)]
 
 
-def _width(args: tuple, z: float) -> tuple[float, tuple[int, int]]:
+def _width(args: tuple, z: float) -> tuple[float, Shape]:
     """The engaged arcs' total span (rad) at ``z`` mm above the tip, and their shape: the contact
     area's integrand (:func:`.area.contact_area`), whose parts end where the shape changes. The
-    shape is the number of arcs (-1: the whole circle) and a code of what bounds their ends
+    shape is the number of arcs (-1: the whole circle) and the sorted causes of their ends
     (:func:`.contact.end_cause`: the front's limit, a stock face, an earlier sweep): where an end
     passes from one to another the span bends (from a front limit to an earlier pass's surface, with
     a square-root onset), which a part's end makes smooth."""
     found = _found(args, z)
     if len(found) == 1 and found[0, 1] >= 2 * math.pi:
-        return 2 * math.pi, (-1, 0)
-    return float(found[:, 1].sum()), (len(found), hash(tuple(sorted(found[:, 2:].ravel().tolist()))))
+        return 2 * math.pi, (-1, ())
+    return float(found[:, 1].sum()), (len(found), tuple(sorted(found[:, 2:].ravel().tolist())))
 
 
 def _area_breaks(shaping: np.ndarray, PP: np.ndarray, NPC: np.ndarray, top: float, ez: float) -> list[float]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fusioncut.engines.analytic.area import contact_area
+from fusioncut.engines.analytic.area import Shape, contact_area
 from fusioncut.engines.analytic.contact import material_blocker
 from fusioncut.engines.analytic.profile import lower_profile
 from fusioncut.engines.analytic.sweeps import line_row
@@ -22,9 +22,9 @@ def test_a_kink_the_arcs_shape_announces_is_split_at_and_integrated_to_round_off
     exact on both sides (linear W), with a few dozen evaluations."""
     calls = []
 
-    def width(z: float) -> tuple[float, tuple[int, int]]:
+    def width(z: float) -> tuple[float, Shape]:
         calls.append(z)
-        return 1.0 + max(0.0, z - kink), (1, 0 if z < kink else 1)
+        return 1.0 + max(0.0, z - kink), (1, (0.0, 0.0) if z < kink else (0.0, 2.0))
 
     area, err = contact_area(width, FLAT, 0.0, 1.0, [], rel_tol=1e-12)
     expected = R * (1.0 + 0.5 * (1.0 - kink) ** 2)
