@@ -17,8 +17,10 @@ Gauss-Kronrod (7, 15) with a **global** error budget, as QUADPACK's QAG: the par
 error estimate (QUADPACK's, from the two rules) is halved until the estimates add up to the budget
 (or parts reach :data:`MIN_PART` mm). A budget per part's length would refine a crescent's tip, where
 the removed height starts from zero, down to :data:`MIN_PART`; a global one stops there once the
-tip's share of the error is small. The outer integral gets nine tenths of ``tol`` mm per mm² of
-the rectangle, each inner one a tenth (so that their errors do not look like a rough integrand).
+tip's share of the error is small. The budget is the looser of an absolute one (``tol`` mm per mm²
+of the rectangle) and a relative one (``rel`` of the integral's current sum, QUADPACK's
+``epsrel``); the outer integral gets nine tenths of each, each inner one a tenth (so that their
+errors do not look like a rough integrand), the inner's relative one of its own line.
 
 The integrand also bends where no footprint ends: where ``L`` meets ``h`` (the removed region's
 edge) and where the earlier sweep giving ``h`` changes. Along a line those **kinks** are found by
@@ -445,20 +447,23 @@ def _crossings_at_x(x, circles, segments, lo, hi):
 
 
 @njit(cache=True)
-def _worst(err, n):
-    """Index of the largest of err[:n], and the sum of err[:n]."""
+def _worst(err, val, n):
+    """Index of the largest of err[:n], the sum of err[:n] and the sum of val[:n]."""
     k = 0
     total = 0.0
+    value = 0.0
     for i in range(n):
         total += err[i]
+        value += val[i]
         if err[i] > err[k]:
             k = i
-    return k, total
+    return k, total, value
 
 
 @njit(cache=True)
-def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, edges):
-    """(integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all;
+def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges):
+    """(integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all
+    or ``rel`` of itself, whichever is looser;
     the same integral of the removed height within each band of ``edges`` (its error not controlled
     on its own: it shares the whole integral's nodes))."""
     pts, owners = _crossings_at_x(x, circles, segments, ylo, yhi)
@@ -477,8 +482,8 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
             val[n], err[n] = _gk_y(x, lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n], changes[n])
             n += 1
     while n < _PANELS:
-        k, total = _worst(err, n)
-        if total <= budget or err[k] == 0.0:
+        k, total, value = _worst(err, val, n)
+        if total <= max(budget, rel * abs(value)) or err[k] == 0.0:
             break
         a, b = lo[k], hi[k]
         if b - a <= MIN_PART:
@@ -502,14 +507,15 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
 
 
 @njit(cache=True)
-def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, edges, kb):
+def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges, kb):
     k = 0.0
     g = 0.0
     m = 0.0
     for i in range(15):
         u, wk, wg = _node(i)
         x, w = _smooth(a, b, u)
-        v, vb = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, edges)
+        v, vb = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel,
+                               edges)
         f = v * w
         k += wk * f
         g += wg * f
@@ -576,11 +582,12 @@ def _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
 
 
 @njit(cache=True)
-def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol, edges):
+def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol, rel, edges):
     """(the removed volume (mm³) over x between the sorted break points ``xs`` and y in [ylo, yhi],
-    to ``tol`` mm per mm² of that rectangle; the volume removed within each band [edges[i],
-    edges[i + 1]] of machine heights, on the same nodes). A tenth of the budget goes to the inner
-    integrals (each line's error within a tenth of ``tol (yhi - ylo)``), the rest to the outer one.
+    to ``tol`` mm per mm² of that rectangle or ``rel`` of the volume, whichever is looser; the volume
+    removed within each band [edges[i], edges[i + 1]] of machine heights, on the same nodes). A tenth
+    of each goes to the inner integrals (each line's error within a tenth of ``tol (yhi - ylo)`` or of
+    ``rel`` of the line's integral), the rest to the outer one.
     The bands' volumes are as exact as the whole where the removed height's ends do not cross a
     band's edge within a part; where they do, the part is only as fine as the whole needs."""
     area = (xs[-1] - xs[0]) * (yhi - ylo)
@@ -598,11 +605,11 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
         if xs[p + 1] - xs[p] > 0.0 and n < _PANELS:
             lo[n], hi[n] = xs[p], xs[p + 1]
             val[n], err[n] = _gk_x(lo[n], hi[n], ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt,
-                                   inner, edges, bands[n])
+                                   inner, 0.1 * rel, edges, bands[n])
             n += 1
     while n < _PANELS:
-        k, total = _worst(err, n)
-        if total <= budget or err[k] == 0.0:
+        k, total, value = _worst(err, val, n)
+        if total <= max(budget, 0.9 * rel * abs(value)) or err[k] == 0.0:
             break
         a, b = lo[k], hi[k]
         if b - a <= MIN_PART:
@@ -611,11 +618,11 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
         m = 0.5 * (a + b)
         hi[k] = m
         bands[k] = 0.0
-        val[k], err[k] = _gk_x(a, m, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner, edges,
-                               bands[k])
+        val[k], err[k] = _gk_x(a, m, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner,
+                               0.1 * rel, edges, bands[k])
         lo[n], hi[n] = m, b
-        val[n], err[n] = _gk_x(m, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner, edges,
-                               bands[n])
+        val[n], err[n] = _gk_x(m, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner,
+                               0.1 * rel, edges, bands[n])
         n += 1
     return val[:n].sum(), bands[:n].sum(axis=0)
 
