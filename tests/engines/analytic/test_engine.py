@@ -148,6 +148,21 @@ def test_ball_slot_closed_form():
     assert last.removed_volume == pytest.approx(20 * segment, rel=VOLUME_REL)
 
 
+@pytest.mark.parametrize("depth", [3.0, 0.01])
+@pytest.mark.parametrize(("tol", "rel"), [(0.0, 1e-8), (1e-10, 0.0)], ids=["relative", "absolute"])
+def test_volume_tolerance_relative_or_absolute_alone(depth, tol, rel):
+    """Either tolerance alone holds the ball slot's closed form (a deep slot and a skim whose volume
+    is 1/300 of it): the integral stops at the looser of the two, so each must be enough by itself."""
+    R = 5.0
+    stock = BoxStock((-60, -20, -20), (60, 20, 0))
+    _, maps = run([feed((-80, 2 / 3, -depth), (0, 2 / 3, -depth))], {1: BallEndMill(2 * R, 20)}, stock,
+                  engine=lambda o: AnalyticEngine(o, volume_tol=tol, volume_rel=rel), max_segment_length=20.0)
+    segment = R * R * math.acos((R - depth) / R) - (R - depth) * math.sqrt(2 * R * depth - depth**2)
+    assert maps[-1].removed_volume == pytest.approx(20 * segment, rel=VOLUME_REL)
+    cap = math.pi * depth**2 * (3 * R - depth) / 3  # the ball under the top; half of it lies past the slot's end
+    assert sum(m.removed_volume for m in maps) == pytest.approx(60 * segment + cap / 2, rel=VOLUME_REL)
+
+
 def test_ball_ramp_engages_beyond_the_front_half_by_the_slope():
     """A ball going down a ramp of slope m along +x, deep in the stock: a point of the sphere at
     height z above the tip is on the sweep's front iff cos(theta) >= -m (R - z) / r(z) (the sphere's
