@@ -27,7 +27,8 @@ The engine option ``engine="analytic"`` runs :class:`~fusioncut.engines.analytic
 (exact sweeps, no Booleans) instead: box stocks and tools of revolution only, checked before anything
 is written; with ``workers`` or ``scheduler`` its CLs are computed in chunks on Dask workers
 (:mod:`fusioncut.engines.analytic.parallel`, the same rows); it keeps no B-Rep workpiece, so the
-IPW export and snapshots are skipped with one warning. ``engine="auto"`` (the default) is resolved
+IPW export and snapshots are STL only, a mesh of its exact height map (one warning says so; no
+STEP). ``engine="auto"`` (the default) is resolved
 before anything is written (:func:`resolve_engine`): the analytic engine where it applies to the
 whole run and no IPW export or snapshot is asked, else the B-Rep engine, with one log line saying
 why. ``metadata.json``'s ``engine_options.engine`` and the checkpoint's ``run.json`` record the
@@ -57,6 +58,7 @@ from fusioncut.engines.sizing import Budget, size_toolpath
 from fusioncut.errors import FusionCutError, InputError
 from fusioncut.io import tool_sources
 from fusioncut.io.job import RUN_OPTIONS, Job, build_stock, job_hash, read_toolpath
+from fusioncut.io.mesh import write_stl
 from fusioncut.io.results import ResultWriter, load_results
 from fusioncut.model import (ArcMove, ArcPlane, BoxStock, CLStatus, EngagementMap, MillingTool, Move, Stock,
                              Toolpath)
@@ -321,8 +323,9 @@ def _why_not_analytic(options: EngineOptions, toolpath: Toolpath, stock: Stock, 
     except FusionCutError as exc:
         return f"the analytic engine cannot sweep a tool: {exc}"
     if wants_ipw:
-        return ("an IPW export or snapshot is asked, which needs the B-Rep workpiece (the analytic engine keeps "
-                "none; without the export, e.g. --no-ipw-export, the analytic engine runs it)")
+        return ("an IPW export or snapshot is asked, which the B-Rep engine writes as STEP and STL (the analytic "
+                "engine writes an STL of its height map only; without the export, e.g. --no-ipw-export, or with "
+                "engine 'analytic', the analytic engine runs it)")
     if _flat_level_cuts(toolpath, default_tool):
         return ("every cut is a level or vertical move of a flat end mill, where the B-Rep engine's 2.5D layers are "
                 "exact as well and far faster (docs/decisions/engine-auto.md)")
@@ -430,9 +433,11 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
     if default_tool is not None:
         tools.setdefault(default_tool.label, default_tool)
     snapshots = set(snapshot_cls)
+    snapshot_suffix = ".step"
     if engine.kind == EngineKind.ANALYTIC and (export_ipw or snapshots):
-        log.warning("the analytic engine keeps no B-Rep workpiece: no IPW export or snapshot is written")
-        snapshots, export_ipw = set(), False
+        log.warning("the analytic engine keeps no B-Rep workpiece: the IPW is written as STL only, a mesh of its "
+                    "exact height map (no STEP: the B-Rep engine writes that)")
+        snapshot_suffix = ".stl"
     exported: list[Path] = []
     interrupted = False
     writer = ResultWriter(out_dir, job_hash=job_id, tools=tools, options=engine.options, expected_cls=expected,
@@ -464,7 +469,7 @@ def _run(engine: Engine, ctrl_c: _CtrlC, toolpath: Toolpath, stock: Stock, out_d
                 ops.setdefault(m.operation, OperationSummary(m.operation)).add(m)
                 _log_cl(m)
                 if m.cl_index in snapshots:
-                    exported += _export(engine, [out_dir / f"ipw_cl{m.cl_index:06d}.step"])
+                    exported += _export(engine, [out_dir / f"ipw_cl{m.cl_index:06d}{snapshot_suffix}"])
                 if checkpoint_every and (m.cl_index + 1) % checkpoint_every == 0 and m.cl_index + 1 < total:
                     checkpoint()
                 if on_cl:
@@ -516,10 +521,13 @@ def _log_cl(m: EngagementMap) -> None:
 
 
 def _export(engine: Engine, paths: list[Path]) -> list[Path]:
-    """Write the current IPW to each path (.step or .stl); a failure is logged, not raised, because
-    the results are complete without it."""
+    """Write the current IPW to each path (.step or .stl; the analytic engine's to the .stl ones
+    only, :func:`_export_mesh`); a failure is logged, not raised, because the results are complete
+    without it."""
     from fusioncut.engines.brep.export import export_ipw
 
+    if engine.kind == EngineKind.ANALYTIC:
+        return _export_mesh(engine, [p for p in paths if p.suffix.lower() == ".stl"])
     written = []
     try:
         ipw = engine.ipw  # once for all paths: a parallel engine fetches it from its workers
@@ -535,6 +543,23 @@ def _export(engine: Engine, paths: list[Path]) -> list[Path]:
             export_ipw(ipw, p)  # joins the cells into one solid and keeps OCCT's output quiet
             written.append(p)
         except Exception as e:  # noqa: BLE001 - OCP raises its own types; the run itself succeeded
+            log.error("could not write %s: %s", p, e)
+    return written
+
+
+def _export_mesh(engine: Engine, paths: list[Path]) -> list[Path]:
+    """Write the analytic engine's workpiece as a mesh of its exact height map
+    (:meth:`AnalyticEngine.ipw_mesh`) to each path (binary STL); a failure is logged, not raised."""
+    written = []
+    try:
+        triangles = engine.ipw_mesh()  # type: ignore[attr-defined]
+    except Exception as e:  # noqa: BLE001 - the results are complete without the files
+        log.error("could not mesh the workpiece to write %s: %s", ", ".join(p.name for p in paths), e)
+        return written
+    for p in paths:
+        try:
+            written.append(write_stl(p, triangles, "FusionCut IPW, analytic engine's height map"))
+        except OSError as e:
             log.error("could not write %s: %s", p, e)
     return written
 

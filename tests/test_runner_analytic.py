@@ -18,6 +18,7 @@ from fusioncut.engines.analytic.engine import AnalyticEngine, CheckpointMismatch
 from fusioncut.engines.analytic.profile import UnsupportedTool
 from fusioncut.engines.base import EngineOptions
 from fusioncut.io.job import Job, Options, StockSpec, ToolSpec, job_hash, load_job
+from fusioncut.io.mesh import mesh_volume, read_stl
 from fusioncut.io.results import load_results
 from fusioncut.runner import prepare_job, run_job
 
@@ -86,8 +87,13 @@ def test_cli_run_with_the_analytic_engine_gives_the_engines_maps(tmp_path):
     assert found, res.output
     error = float(found.group(1))
     assert error < 1e-9
-    assert not (out / "ipw.step").exists() and not (out / "ipw.stl").exists()
-    assert "no IPW export" in (out / "fusioncut.log").read_text()
+    # the IPW as the mesh of the exact height map: closed, its volume the run's to within the mesh's
+    # linear walls (the slot's two 2 mm walls and the ramp's, a grid step of 3/8 mm)
+    assert not (out / "ipw.step").exists()
+    assert "the IPW is written as STL only" in (out / "fusioncut.log").read_text()
+    ipw = read_stl(out / "ipw.stl")
+    final = 30 * 20 * 10 - load_results(out).cl["removed_volume_mm3"].sum()
+    assert abs(mesh_volume(ipw) - final) < 0.5 * 0.375 * 2 * (2 * 12 + 2 * 6), (mesh_volume(ipw), final)
     assert json.loads((out / "metadata.json").read_text())["engine_options"]["engine"] == "analytic"
 
     cl = load_results(out).cl
@@ -172,6 +178,7 @@ def test_a_parallel_analytic_run_equals_one_process_and_resumes_across_them(tmp_
     (cl_a, sl_a), (cl_b, sl_b) = tables(tmp_path / "ref"), tables(tmp_path / "par")
     pd.testing.assert_frame_equal(cl_a, cl_b, check_exact=True)
     pd.testing.assert_frame_equal(sl_a, sl_b, check_exact=True)
+    assert (tmp_path / "par" / "ipw.stl").read_bytes() == (tmp_path / "ref" / "ipw.stl").read_bytes()
 
     out = tmp_path / "out"
     assert run_job(parallel_job, base, out, on_cl=stop_after(9)).interrupted
@@ -348,3 +355,19 @@ def test_a_cl_neither_engine_computes_fails_alone(tmp_path, monkeypatch):
     later = out.cl[out.cl["cl"] > k].drop(columns=["time_ms"]).reset_index(drop=True)
     pd.testing.assert_frame_equal(later, ana.cl[ana.cl["cl"] > k].drop(columns=["time_ms"]).reset_index(drop=True),
                                   check_exact=True)
+
+
+def test_an_analytic_runs_snapshots_are_meshes_of_the_workpiece_then(tmp_path):
+    """``snapshot_cls`` with the analytic engine: ipw_cl<N>.stl, the workpiece after CL N (its volume
+    the stock's less the CLs up to N, within the mesh's sloped walls), no STEP."""
+    job, base = load_job(job_file(tmp_path))
+    job = job.model_copy(update={"options": job.options.model_copy(update={"snapshot_cls": [4, 9]})})
+    out = tmp_path / "out"
+    r = run_job(job, base, out, export_ipw=False)
+    assert sorted(p.name for p in r.exported) == ["ipw_cl000004.stl", "ipw_cl000009.stl"]
+    assert not list(out.glob("*.step"))
+    cl = load_results(out).cl
+    for n in (4, 9):
+        final = 30 * 20 * 10 - cl[cl["cl"] <= n]["removed_volume_mm3"].sum()
+        assert abs(mesh_volume(read_stl(out / f"ipw_cl{n:06d}.stl")) - final) < 0.5 * 0.375 * 2 * (2 * 12 + 2 * 6)
+    assert mesh_volume(read_stl(out / "ipw_cl000004.stl")) > mesh_volume(read_stl(out / "ipw_cl000009.stl"))

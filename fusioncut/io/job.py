@@ -241,7 +241,8 @@ class _RunOptions(_Strict):
     checkpoint_every: int = Field(200, ge=0, description="save a resumable checkpoint every that many CLs "
                                   "(0: only when the run ends or is interrupted)")
     snapshot_cls: list[Annotated[int, Field(ge=0)]] = Field(
-        [], description="write the workpiece as ipw_cl<N>.step after each of these CL indices")
+        [], description="write the workpiece as ipw_cl<N>.step after each of these CL indices (ipw_cl<N>.stl "
+        "with the analytic engine)")
     workers: int = Field(1, ge=1, description="Dask worker processes of an embedded cluster sharing the cells")
     scheduler: str | None = Field(None, description="address of a running Dask scheduler whose workers run it")
 

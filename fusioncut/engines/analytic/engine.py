@@ -57,6 +57,7 @@ import numpy as np
 from fusioncut.engines.analytic.area import Shape, contact_area
 from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
+from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                profile_radius, profile_radius_slope)
@@ -150,6 +151,25 @@ class AnalyticEngine:
     def ipw_volume(self) -> float:
         """The workpiece's volume (mm³): the stock's less what the CLs handed out removed."""
         return self.stock_volume - self.removed_total
+
+    def ipw_mesh(self, step: float | None = None) -> np.ndarray:
+        """The workpiece after the CLs indexed so far as a closed triangle mesh ((n, 3, 3), mm,
+        :func:`.heightmap.ipw_mesh`): its exact height at the nodes of a grid ``step`` mm apart
+        (None: :data:`.heightmap.NODE_RADII` of the smallest tool radius met, or the stock's
+        smaller side / 64 before any), as coarse as :data:`.heightmap.MAX_NODES` needs."""
+        s = self.stock
+        if not s:
+            raise InputError("the analytic engine has no stock yet: start() it before asking for its workpiece")
+        if step is None:
+            radii = self._tools.radii
+            step = NODE_RADII * float(radii.min()) if radii.size else min(s[3] - s[0], s[4] - s[1]) / 64
+        xs, ys = grid((s[0], s[1], s[3], s[4]), step)
+        n = self._index.size if self._index else 0
+        rows = self._index.rows[:n] if self._index else np.zeros((0, NCOL))
+        boxes = self._index.boxes[:n] if self._index else np.zeros((0, 4))
+        t = self._tools
+        Z = height_map(rows, boxes, t.profiles, t.counts, t.radii, xs, ys, s[2], s[5])
+        return ipw_mesh(xs, ys, Z, s[2])
 
     def _sweeps(self) -> np.ndarray:
         n = self._index.size if self._index else 0

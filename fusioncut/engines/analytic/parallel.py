@@ -146,6 +146,10 @@ class ParallelAnalyticEngine:
     def ipw_volume(self) -> float:
         return self._local.ipw_volume
 
+    def ipw_mesh(self, step: float | None = None):
+        """:meth:`AnalyticEngine.ipw_mesh` of the local engine, which indexes every CL the workers did."""
+        return self._local.ipw_mesh(step)
+
     def start(self, stock: Stock) -> None:
         self._local.options = self.options
         self._local.start(stock)
