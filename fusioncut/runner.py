@@ -69,6 +69,7 @@ CHECKPOINT_DIR = "checkpoint"
 RUN_STATE = "run.json"  # in the checkpoint folder: which job (hash, version) the engine state is of,
 # and the cell size its workpiece was cut into
 DEFAULT_CHECKPOINT_EVERY = 200
+EXPORT_BUDGETS = 10  # an IPW export (joining every cell, then writing) may take this many CL kernel budgets
 PARALLEL_CELL_SIZE = EngineOptions().cell_size  # mm: the cells of a parallel run whose job asks for none
 
 __all__ = [
@@ -538,10 +539,16 @@ def _export(engine: Engine, paths: list[Path]) -> list[Path]:
         log.warning("the %s engine keeps no workpiece to write %s", engine.kind.value,
                     ", ".join(p.name for p in paths))
         return written
+    budget = engine.options.kernel_budget_s
     for p in paths:
         try:
-            export_ipw(ipw, p)  # joins the cells into one solid and keeps OCCT's output quiet
+            # joins the cells into one solid and keeps OCCT's output quiet; in the kernel's killable
+            # child, as the CLs' Booleans, with EXPORT_BUDGETS of their budget
+            export_ipw(ipw, p, budget_s=None if budget is None else EXPORT_BUDGETS * budget)
             written.append(p)
+        except KeyboardInterrupt:  # the run is done and its rows written: only the file is given up
+            log.warning("interrupted while writing %s: not written", p)
+            break
         except Exception as e:  # noqa: BLE001 - OCP raises its own types; the run itself succeeded
             log.error("could not write %s: %s", p, e)
     return written

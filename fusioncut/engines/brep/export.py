@@ -33,6 +33,7 @@ from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 
 from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.brep.budget import Deadline, guarded, in_child, shape_bytes, shape_from_bytes
 from fusioncut.engines.brep.contact import ContactFace, find_contact_faces
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.occ import (
@@ -111,7 +112,7 @@ def _meshed_copy(shape: TopoDS_Shape, deflection: float, angle: float) -> BRepBu
     if not deflection > 0:
         raise ValueError(f"mesh deflection must be > 0 mm, got {deflection}")
     copier = BRepBuilderAPI_Copy(shape, True, False)
-    mesher = BRepMesh_IncrementalMesh(copier.Shape(), float(deflection), False, float(angle), True)
+    mesher = BRepMesh_IncrementalMesh(copier.Shape(), float(deflection), False, float(angle), not in_child())
     if not mesher.IsDone():
         raise GeometryError(f"meshing failed (deflection {deflection} mm)")
     return copier
@@ -296,12 +297,17 @@ def _quiet_kernel():
 
 
 def export_ipw(ipw: TopoDS_Shape | BRepEngine, path: str | Path, deflection: float = 0.01,
-               angle: float = DEFAULT_ANGLE) -> str:
+               angle: float = DEFAULT_ANGLE, budget_s: float | None = None) -> str:
     """Write the IPW (an engine, or its ``ipw``) to ``path``; the suffix picks the format. Returns the
     format's name. The cells of the engine's IPW are joined first (:func:`whole_ipw`).
 
     ``.step`` / ``.stp``: AP214 in mm, exact B-Rep. ``.brep``: OCCT's text format, exact to the bit.
     ``.stl``: binary, facets within ``deflection`` mm (and ``angle`` rad) of the exact surface.
+
+    ``budget_s`` (s): the join and the write run in the kernel's killable child process
+    (:func:`~fusioncut.engines.brep.budget.guarded`, the shape sent as binary BRep), killed past it
+    (:class:`~fusioncut.engines.brep.budget.KernelBudgetExceeded`, nothing written); None: here,
+    unbounded.
     """
     path = Path(path)
     kind = IPW_SUFFIXES.get(path.suffix.lower())
@@ -311,6 +317,24 @@ def export_ipw(ipw: TopoDS_Shape | BRepEngine, path: str | Path, deflection: flo
         raise InputError("the output folder does not exist", path.parent)
     if kind == "STL" and not deflection > 0:
         raise ValueError(f"STL deflection must be > 0 mm, got {deflection}")
+    deadline = Deadline(budget_s)
+    if deadline.guards:
+        shape = ipw.ipw if isinstance(ipw, BRepEngine) else ipw
+        if shape is None or shape.IsNull():
+            raise GeometryError("there is no workpiece")
+        guarded(_write_ipw_bytes, (shape_bytes(shape), str(path), kind, deflection, angle), deadline,
+                f"writing {path.name}")
+    else:
+        _write_ipw(ipw, path, kind, deflection, angle)
+    return kind
+
+
+def _write_ipw_bytes(data: bytes, path: str, kind: str, deflection: float, angle: float) -> None:
+    """:func:`_write_ipw` of a shape sent as binary BRep (the kernel's child runs this)."""
+    _write_ipw(shape_from_bytes(data), Path(path), kind, deflection, angle)
+
+
+def _write_ipw(ipw: TopoDS_Shape | BRepEngine, path: Path, kind: str, deflection: float, angle: float) -> None:
     with _kernel_errors(f"writing {path.name}"), _quiet_kernel():
         ipw = whole_ipw(ipw)
         if kind == "STEP":
@@ -320,7 +344,6 @@ def export_ipw(ipw: TopoDS_Shape | BRepEngine, path: str | Path, deflection: flo
         else:
             # mesh a copy: the engine's IPW keeps no triangulation it did not ask for
             write_stl(BRepBuilderAPI_Copy(ipw, True, False).Shape(), str(path), deflection, angle)
-    return kind
 
 
 # -- engine state at a CL -------------------------------------------------------------------------

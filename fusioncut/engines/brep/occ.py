@@ -32,6 +32,7 @@ from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopToo
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 from OCP.collections import List_TopoDS_Shape
 
+from fusioncut.engines.brep.budget import in_child
 from fusioncut.errors import KernelFailure
 
 Vec3 = tuple[float, float, float]
@@ -464,11 +465,13 @@ def write_step(shape: TopoDS_Shape, path: str) -> None:
 
 
 def write_stl(shape: TopoDS_Shape, path: str, deflection: float = 0.01, angle: float = 0.2) -> None:
-    """Write ``shape`` as binary STL, meshed within ``deflection`` mm and ``angle`` rad."""
+    """Write ``shape`` as binary STL, meshed within ``deflection`` mm and ``angle`` rad (on OCCT's
+    threads, except in the kernel's child process, whose fork has none of them:
+    :mod:`~fusioncut.engines.brep.budget`)."""
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.StlAPI import StlAPI_Writer
 
-    BRepMesh_IncrementalMesh(shape, deflection, False, angle, True)
+    BRepMesh_IncrementalMesh(shape, deflection, False, angle, not in_child())
     writer = StlAPI_Writer()
     writer.ASCIIMode = False
     if not writer.Write(shape, path):

@@ -8,12 +8,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import numpy as np
 import pytest
 import trimesh
 
 from fusioncut.engines.base import EngineOptions
+from fusioncut.engines.brep import budget as budget_mod
+from fusioncut.engines.brep import export as export_module
+from fusioncut.engines.brep.budget import KernelBudgetExceeded
 from fusioncut.engines.brep.export import (
     CLScene, cl_scene, contact_faces_at, engagement_lines, export_ipw, replay, tessellate, whole_ipw,
 )
@@ -21,6 +25,7 @@ from fusioncut.engines.brep.occ import area, bounding_box, compound, read_brep, 
 from fusioncut.engines.brep.stock import stock_solid
 from fusioncut.engines.brep.sweep import placed_tool
 from fusioncut.errors import InputError
+from fusioncut.io.mesh import read_stl
 from fusioncut.model import (AngleInterval, BallEndMill, BoxStock, CLStatus, CylinderStock, EngagementMap,
                              FlatEndMill, LinearMove, SliceEngagement, SpindleDirection, Toolpath)
 from fusioncut.model.angles import machine_from_immersion
@@ -152,6 +157,34 @@ def test_export_errors(state, tmp_path):
         export_ipw(state.engine, tmp_path / "ipw.obj")
     with pytest.raises(InputError, match="output folder does not exist"):
         export_ipw(state.engine, tmp_path / "missing" / "ipw.step")
+
+
+@pytest.mark.parametrize("suffix", [".brep", ".stl"])
+def test_an_export_under_a_budget_writes_the_same_file_from_the_kernels_child(state, tmp_path, suffix):
+    """The shape crosses to the child as binary BRep, which keeps every double but not a zero's sign
+    in a direction (-0 comes back 0): the same numbers, the same mesh."""
+    here, there = tmp_path / f"here{suffix}", tmp_path / f"there{suffix}"
+    export_ipw(state.engine, here)
+    export_ipw(state.engine, there, budget_s=60.0)
+    if suffix == ".brep":
+        def numbers(path):
+            return ["0" if t == "-0" else t for t in path.read_text().split()]
+        assert numbers(there) == numbers(here)
+    else:
+        assert np.array_equal(read_stl(there), read_stl(here))
+
+
+def test_an_export_past_its_budget_is_killed_and_writes_nothing(state, tmp_path, monkeypatch):
+    """A join that hangs (stood in for by a sleep in the child, forked after the patch) is killed at
+    the budget: KernelBudgetExceeded names the file, and no file is left."""
+    budget_mod.stop_worker()  # the next guarded call forks a child that has the patch
+    monkeypatch.setattr(export_module, "whole_ipw", lambda ipw: time.sleep(60))
+    t0 = time.monotonic()
+    with pytest.raises(KernelBudgetExceeded, match="writing ipw.step ran past the kernel budget of 0.5 s"):
+        export_ipw(state.engine, tmp_path / "ipw.step", budget_s=0.5)
+    assert time.monotonic() - t0 < 10 and not (tmp_path / "ipw.step").exists()
+    monkeypatch.undo()
+    budget_mod.stop_worker()
 
 
 # -- replay and contact faces -------------------------------------------------------------------------
