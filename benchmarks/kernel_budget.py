@@ -1,6 +1,7 @@
 """The cost of the kernel budget (EngineOptions.kernel_budget_s, engines/brep/budget.py): the same
-CLs with the 3D Booleans in this process (with and without the kernel's threads) and in the kept,
-killable child; results compared bit for bit. Numbers: docs/kernel-budget.md.
+CLs with the 3D Booleans and the sweeps' fuses in this process (with and without the
+kernel's threads) and in the kept, killable child; results compared bit for bit. Numbers:
+docs/kernel-budget.md.
 
     .venv/bin/python benchmarks/kernel_budget.py [repeats]
 """
@@ -11,7 +12,7 @@ import sys
 import time
 
 from fusioncut.engines.base import EngineOptions
-from fusioncut.engines.brep import solid_cut
+from fusioncut.engines.brep import occ, solid_cut
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.model import BallEndMill, BoxStock, FlatEndMill, LinearMove, Toolpath
 
@@ -33,7 +34,7 @@ def measure(tool, repeats: int) -> None:
         calls[0] += 1
         return real(*args)
 
-    solid_cut.guarded = counting
+    solid_cut.guarded = occ.guarded = counting
     rows = {}
     for name, kw in (("in process, kernel threads", dict(kernel_budget_s=None)),
                      ("in process, one thread", dict(kernel_budget_s=None, kernel_threads=False)),
@@ -47,7 +48,7 @@ def measure(tool, repeats: int) -> None:
             times.append(time.perf_counter() - t0)
             keys.append([(m.status, m.removed_volume, [(s.z, s.intervals) for s in m.slices]) for m in maps])
         rows[name] = (statistics.median(times), min(times), calls[0], keys[0])
-    solid_cut.guarded = real
+    solid_cut.guarded = occ.guarded = real
     base = rows["in process, one thread"]
     for name, (median, best, n, key) in rows.items():
         extra = (median - base[0]) / n * 1e3 if n else float("nan")

@@ -37,6 +37,7 @@ Where ``os.fork`` does not exist the calls run in this process, unguarded (logge
 """
 from __future__ import annotations
 
+import contextvars
 import io
 import logging
 import os
@@ -45,7 +46,8 @@ import select
 import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import TypeVar
 
@@ -54,8 +56,8 @@ from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.errors import FusionCutError, KernelFailure
 
-__all__ = ["Deadline", "KernelBudgetExceeded", "guarded", "in_child", "shape_bytes", "shape_from_bytes",
-           "stop_worker"]
+__all__ = ["Deadline", "KernelBudgetExceeded", "current_deadline", "guarded", "in_child", "shape_bytes",
+           "shape_from_bytes", "stop_worker", "within"]
 
 log = logging.getLogger("fusioncut.engine")
 T = TypeVar("T")
@@ -102,6 +104,27 @@ class Deadline:
 def in_child() -> bool:
     """Whether this process is the kernel's child."""
     return _IN_CHILD
+
+
+_DEADLINE: contextvars.ContextVar[Deadline | None] = contextvars.ContextVar("fusioncut_kernel_deadline", default=None)
+
+
+@contextmanager
+def within(deadline: Deadline) -> Iterator[None]:
+    """Kernel calls made inside that guard themselves (:func:`current_deadline`: the sweeps' fuses of
+    tool copies, :func:`~fusioncut.engines.brep.occ.fuse_all`) run under ``deadline``; for the
+    constructions whose Booleans sit deep in helpers, where passing a deadline down every call
+    would reach functions that mostly run none."""
+    token = _DEADLINE.set(deadline)
+    try:
+        yield
+    finally:
+        _DEADLINE.reset(token)
+
+
+def current_deadline() -> Deadline | None:
+    """The deadline of the innermost :func:`within`, or None."""
+    return _DEADLINE.get()
 
 
 def _can_fork() -> bool:

@@ -50,7 +50,7 @@ from typing import NamedTuple
 from OCP.TopoDS import TopoDS_Shape
 
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
-from fusioncut.engines.brep.budget import Deadline, KernelBudgetExceeded, stop_worker
+from fusioncut.engines.brep.budget import Deadline, KernelBudgetExceeded, stop_worker, within
 from fusioncut.engines.brep.cells import (
     Cell, ClearedTool, Square, column_clear_of, quarter_cells, reach_box, smallest_square, split_into_cells,
     starts_cleared,
@@ -260,7 +260,8 @@ class BRepEngine:
         sweep = None
         if as_solids:
             try:
-                sweep = swept_volume(tool, motion, self.options.sweep, seam, open_start)
+                with within(deadline):  # its fuses of tool copies run under the CL's budget
+                    sweep = swept_volume(tool, motion, self.options.sweep, seam, open_start)
             except Exception as exc:  # noqa: BLE001 - kernel failures become a FAILED CL, never a crash
                 return CutOutcome(CLStatus.FAILED, reason=f"sweep construction failed: {exc}", timings=timings), []
             if motion is not move and sweep.method == SweepMethod.EXACT:
@@ -283,7 +284,8 @@ class BRepEngine:
         results: list[SolidCut] = []
         if touched:
             def resweep(turn: float, start_left_out: bool) -> SweptVolume:
-                return swept_volume(tool, motion, self.options.sweep, seam + turn, start_left_out)
+                with within(deadline):
+                    return swept_volume(tool, motion, self.options.sweep, seam + turn, start_left_out)
 
             try:
                 results, sweep = self._solid_cutter(deadline).cut_with_retries(

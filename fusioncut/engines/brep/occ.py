@@ -32,7 +32,7 @@ from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopToo
 from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
 from OCP.collections import List_TopoDS_Shape
 
-from fusioncut.engines.brep.budget import in_child
+from fusioncut.engines.brep.budget import current_deadline, guarded, in_child, shape_bytes, shape_from_bytes
 from fusioncut.errors import KernelFailure
 
 Vec3 = tuple[float, float, float]
@@ -271,9 +271,15 @@ def on_old_boundary(piece: TopoDS_Shape, origins, own: ShapeMap) -> bool:
 
 
 def fuse_all(shapes: list[TopoDS_Shape], glue: bool = False, fuzzy: float = 0.0) -> TopoDS_Shape:
-    """Union of solids in one Boolean; ``glue`` for arguments that only share whole faces."""
+    """Union of solids in one Boolean; ``glue`` for arguments that only share whole faces. Inside
+    :func:`~fusioncut.engines.brep.budget.within` a deadline that guards, it runs in the kernel's
+    killable child (the shapes sent as binary BRep)."""
     if len(shapes) == 1:
         return shapes[0]
+    deadline = current_deadline()
+    if deadline is not None and deadline.guards:
+        data = guarded(_fuse_bytes, ([shape_bytes(s) for s in shapes], glue, fuzzy), deadline, "a fuse of solids")
+        return shape_from_bytes(data)
     op = BRepAlgoAPI_Fuse()
     op.SetArguments(shape_list(shapes[:1]))
     op.SetTools(shape_list(shapes[1:]))
@@ -287,6 +293,11 @@ def fuse_all(shapes: list[TopoDS_Shape], glue: bool = False, fuzzy: float = 0.0)
     if not op.IsDone():
         raise KernelFailure("fuse of the sweep pieces failed")
     return unify(op.Shape())
+
+
+def _fuse_bytes(shapes: list[bytes], glue: bool, fuzzy: float) -> bytes:
+    """:func:`fuse_all` of shapes sent as binary BRep (the kernel's child runs this)."""
+    return shape_bytes(fuse_all([shape_from_bytes(b) for b in shapes], glue, fuzzy))
 
 
 # mm: a merged edge or vertex looser than this (and than 10x the shape's loosest) fails the merge

@@ -43,7 +43,8 @@ from OCP.TopoDS import TopoDS_Shape
 from OCP.TopAbs import TopAbs_Orientation
 from OCP.TopoDS import TopoDS, TopoDS_Face
 
-from fusioncut.engines.brep.budget import Deadline, KernelBudgetExceeded, guarded, shape_bytes, shape_from_bytes
+from fusioncut.engines.brep.budget import (Deadline, KernelBudgetExceeded, guarded, shape_bytes, shape_from_bytes,
+                                           within)
 from fusioncut.engines.brep.cells import Cell, halves, neighbours
 from fusioncut.engines.brep.occ import (
     Vec3, compound, face_map, faces, fuse_all, intersections, on_old_boundary, pieces, split_pieces,
@@ -208,7 +209,8 @@ class SolidCutter:
             if id(n) in busy:
                 continue
             try:
-                joint = unify(fuse_all([cell.shape, n.shape]), cell.volume + n.volume)
+                with within(self.deadline):
+                    joint = unify(fuse_all([cell.shape, n.shape]), cell.volume + n.volume)
                 sub = self.subtract(joint, sweep, cell.volume + n.volume, probes)
                 new = sub.shape
                 if new is None:
