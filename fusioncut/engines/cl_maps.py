@@ -53,7 +53,7 @@ class CutOutcome:
     (:func:`fusioncut.engines.chip.band_volumes`; () where nothing was removed), known where every
     cell that lost material was layered (a layer's cut knows its lost area and heights); a solid
     cell's Boolean gives only its total, so where one lost material they are None (unknown: no band
-    of that CL is called rubbing).
+    of that CL is called rubbing). ``warnings``: what the engine knows to be approximate in the cut.
     """
 
     status: CLStatus
@@ -65,6 +65,7 @@ class CutOutcome:
     z_range: tuple[float, float] | None = None
     timings: dict[str, float] = field(default_factory=dict)
     band_volumes: tuple[float, ...] | None = ()
+    warnings: tuple[str, ...] = ()
 
     def merged(self, other: CutOutcome) -> CutOutcome:
         """The outcome over both sets of cells (parallel partitions of one IPW)."""
@@ -76,7 +77,8 @@ class CutOutcome:
                           "; ".join(r for r in (self.reason, other.reason) if r),
                           self.flute_area + other.flute_area, self.shank_area + other.shank_area,
                           (min(r[0] for r in zr), max(r[1] for r in zr)) if zr else None, timings,
-                          summed(self.band_volumes, other.band_volumes))
+                          summed(self.band_volumes, other.band_volumes),
+                          tuple(dict.fromkeys(self.warnings + other.warnings)))
 
 
 def cl_sequence(toolpath: Toolpath, options: EngineOptions, default_tool: MillingTool | None = None,
@@ -136,7 +138,7 @@ def engagement_map(cl: CL, outcome: CutOutcome, heights: list[SliceHeight], arcs
     holds the whole flute contact).
     """
     base = cl_base(cl)
-    warnings = []
+    warnings = list(outcome.warnings)
     if outcome.status == CLStatus.RAPID and outcome.removed > 0:
         warnings.append(f"rapid move cuts {outcome.removed:.4g} mm³ of material")
     if outcome.shank_area > 0:

@@ -63,7 +63,8 @@ from fusioncut.engines.brep.occ import (
 )
 from fusioncut.engines.brep.solid_cut import SolidCut, SolidCutter, end_probes
 from fusioncut.engines.brep.stock import stock_solid
-from fusioncut.engines.brep.sweep import SweptVolume, cylinder_region_outline, cylinder_tool, swept_volume
+from fusioncut.engines.brep.sweep import (SweptVolume, cylinder_region_outline, cylinder_tool, sampled_ridge,
+                                         swept_volume)
 from fusioncut.engines.ceiling import MaterialCeiling, SweepFootprint, footprint, load_kernels
 from fusioncut.engines.chip import band_volumes
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
@@ -322,6 +323,12 @@ class BRepEngine:
             return CutOutcome(idle, method=method, timings=timings), []
         outcome = self._apply(cl, results, layered)
         outcome.method, outcome.timings = method, timings
+        if method == SweepMethod.SAMPLED:
+            ridge = sampled_ridge(tool, motion)
+            if ridge > self.options.chord_tolerance:
+                outcome.warnings = (f"swept as the published method's tool copies, which leave material up to "
+                                    f"{ridge:.3g} mm high between them: the removed volume and the engagement "
+                                    "miss it (the analytic engine sweeps this tool exactly)",)
         contacts = []
         try:
             contacts = self._contact_faces(cl, results, layered, sweep, region)

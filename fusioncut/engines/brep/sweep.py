@@ -499,8 +499,7 @@ def sampled_sweep(tool: MillingTool, move: Move, seam: float = 0.0, spacing: flo
     below the copies' own scallops). The union must then be one solid between one tool's volume
     and, on a line, the closed form of the exact sweep's (else fuzzier fuses are tried; then it fails).
     """
-    spacing = spacing or tool.radius / 4
-    n = max(1, math.ceil(move.length / spacing - 1e-9))
+    n = _copies(tool, move, spacing)
     points = [move.point_at(k / n) for k in range(n + 1)]
     for axis in range(3):
         values = [p[axis] for p in points]
@@ -516,6 +515,34 @@ def sampled_sweep(tool: MillingTool, move: Move, seam: float = 0.0, spacing: flo
 
 
 _SNAP = 1e-4  # mm
+
+
+def _copies(tool: MillingTool, move: Move, spacing: float | None = None) -> int:
+    """The intervals between the tool copies of :func:`sampled_sweep` (copies every ``spacing`` mm
+    along the move at most, default R/4)."""
+    return max(1, math.ceil(move.length / (spacing or tool.radius / 4) - 1e-9))
+
+
+def sampled_ridge(tool: MillingTool, move: Move, spacing: float | None = None) -> float:
+    """How high (mm, above the copies' tips) the material between two neighbouring copies of
+    :func:`sampled_sweep` can stand: the height where the tool's radius reaches half their horizontal
+    distance (a ball's scallop, a V-bit's ridge). The exact sweep leaves none."""
+    if isinstance(move, ArcMove):
+        horizontal = abs(move.sweep) * max(move.radius, move.end_radius)
+    else:
+        horizontal = math.hypot(move.end[0] - move.start[0], move.end[1] - move.start[1])
+    half = 0.5 * horizontal / _copies(tool, move, spacing)
+    profile = tool.profile()
+    lo, hi = 0.0, profile.height
+    if half <= 0.0 or profile.radius_at(lo) >= half:
+        return 0.0
+    for _ in range(60):  # bisection on the profile's radius, which grows with z up to R (convex tools)
+        mid = 0.5 * (lo + hi)
+        if profile.radius_at(mid) >= half:
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 def _line_sweep_volume_bound(tool: MillingTool, move: Move) -> float:

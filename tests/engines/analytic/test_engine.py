@@ -488,3 +488,18 @@ def test_tapered_ball_in_a_v_groove_closed_form(path, engine):
     cone = (zj - d) * (yc - yj) + 0.5 * cot_b * (yc - yj) ** 2
     length = math.dist(last.start, last.position)
     assert last.removed_volume == pytest.approx(2 * (groove - ball - cone) * length, rel=VOLUME_REL)
+
+
+def test_on_a_v_bits_steep_ramp_the_brep_engines_tool_copies_warn_and_miss_what_the_exact_sweep_removes():
+    """The B-Rep engine sweeps a chamfer mill's ramp steeper than it steps (wave's move at line 27,
+    isolated) as tool copies R/4 apart: their cones leave 1.61 mm ridges between them, it says so,
+    and removes less than the exact sweep (the copies lie inside it)."""
+    tool = ChamferMill(diameter=12.5, flute_length=16, taper_angle=22.5)
+    moves = [feed((36, 0, -0.38395), (40, 0, -1.220484))]
+    stock = BoxStock((20, -10, -6), (60, 10, 0))
+    _, (exact,) = run(moves, {1: tool}, stock)
+    _, (sampled,) = run(moves, {1: tool}, stock, engine=BRepEngine)
+    assert exact.sweep_method == "exact" and not exact.warnings
+    assert sampled.sweep_method == "sampled"
+    assert any("material up to 1.61 mm high between them" in w for w in sampled.warnings), sampled.warnings
+    assert 0 < sampled.removed_volume < 0.5 * exact.removed_volume

@@ -7,7 +7,8 @@ import pytest
 
 from fusioncut.engines.brep import planar
 from fusioncut.engines.brep.occ import area, volume
-from fusioncut.engines.brep.sweep import cylinder_region_outline, full_section, swept_volume, tool_solid
+from fusioncut.engines.brep.sweep import (cylinder_region_outline, full_section, sampled_ridge, swept_volume,
+                                         tool_solid)
 from fusioncut.model import (AptCutter, AptParameters, ArcMove, BallEndMill, BullNoseEndMill, ChamferMill,
                              FlatEndMill, LinearMove, TaperedEndMill)
 
@@ -229,3 +230,18 @@ def test_an_arc_too_short_for_the_kernel_sweeps_as_its_chord(tool, radius):
     move = ArcMove((0.0, -radius, 0.0), (radius * math.sin(a), -radius * math.cos(a), 0.0), center=(0.0, 0.0, 0.0))
     assert volume(swept_volume(tool, move).shape) == pytest.approx(volume(tool_solid(tool)), rel=1e-6)
     assert planar.region_area(cylinder_region_outline(3.0, move)) == pytest.approx(math.pi * 9.0, rel=1e-6)
+
+
+@pytest.mark.parametrize("tool, half_angle", [(ChamferMill(diameter=12.5, flute_length=16, taper_angle=22.5), 22.5),
+                                              (BallEndMill(6, 20), None)])
+def test_the_sampled_sweeps_ridge_between_copies(tool, half_angle):
+    """Copies R/4 apart along a 4 mm, 0.84 mm deep ramp (3 intervals, 4/3 mm apart across the
+    floor): a V-bit's ridge between two is where its cone reaches 2/3 mm, a ball's its scallop."""
+    move = LinearMove((36, 0, -0.38), (40, 0, -1.22), feed=600)
+    half = 0.5 * 4 / math.ceil(move.length / (tool.radius / 4))
+    if half_angle is not None:
+        expected = half / math.tan(math.radians(half_angle))
+    else:
+        expected = tool.radius - math.sqrt(tool.radius**2 - half**2)
+    assert sampled_ridge(tool, move) == pytest.approx(expected, abs=1e-9)
+    assert sampled_ridge(tool, LinearMove((0, 0, 0), (0, 0, -2), feed=600)) == 0.0  # a plunge's copies stack
