@@ -103,6 +103,21 @@ def test_export_ipw(job, slot_end, tmp_path, suffix):
         assert mesh.volume != pytest.approx(30 * 20 * 10, rel=0.01)  # material was removed
 
 
+def test_export_ipw_of_the_analytic_height_map(job, slot_end, tmp_path):
+    """--engine analytic: the sweeps up to the CL, meshed through their exact heights (no replay).
+    The side pass and the slot (2 and 3 mm deep, 3 walls each, 12 and 20 mm long) slope over one
+    grid step of 0.25 mm: the mesh holds the B-Rep workpiece's volume to half a step times their area."""
+    out = tmp_path / "ipw.stl"
+    res = _ok(["export-ipw", str(job), "--cl", str(slot_end), "--out", str(out), "--engine", "analytic",
+               "--grid", "0.25"])
+    assert f"the workpiece after CL {slot_end}" in res and "height map" in res
+    toolpath, stock, options, tool, _ = load_inputs(str(job))
+    expected = replay(toolpath, stock, slot_end, options, tool).engine.ipw_volume
+    mesh = trimesh.load(out)
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    assert abs(mesh.volume - expected) < 0.5 * 0.25 * (2 * (2 * 12 + 6) + 3 * (2 * 20 + 6))
+
+
 @pytest.mark.parametrize("args, message", [
     (["view", "{job}", "--cl", "999", "--out", "{tmp}/x.html"], "CL 999 is out of range"),
     (["view", "{job}", "--cl", "1", "--out", "{tmp}/x.png"], "written as .html"),
@@ -110,6 +125,8 @@ def test_export_ipw(job, slot_end, tmp_path, suffix):
     (["view", "{tmp}/nope.json", "--cl", "1", "--out", "{tmp}/x.html"], "job file not found"),
     (["export-ipw", "{job}", "--cl", "1", "--out", "{tmp}/x.obj"], "unsupported workpiece format"),
     (["export-ipw", "{job}", "--cl", "1", "--out", "{tmp}/no/x.step"], "output folder does not exist"),
+    (["export-ipw", "{job}", "--cl", "1", "--out", "{tmp}/x.step", "--engine", "analytic"], "with --engine analytic, .stl"),
+    (["export-ipw", "{job}", "--cl", "1", "--out", "{tmp}/x.stl", "--engine", "nope"], "use brep or analytic"),
 ])
 def test_errors_are_one_clear_line(job, tmp_path, args, message):
     res = runner.invoke(app, [a.format(job=job, tmp=tmp_path) for a in args])

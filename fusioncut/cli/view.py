@@ -116,16 +116,50 @@ def register(app: typer.Typer) -> None:
         cl: int = typer.Option(..., "--cl", min=0, help="The workpiece after this CL index."),
         out: Path = typer.Option(..., "--out", "-o", help="Output file: .step/.stp (exact), .stl (meshed), .brep."),
         deflection: float = typer.Option(0.01, "--deflection", min=1e-5, help="STL facet deflection, mm."),
+        engine: str = typer.Option("brep", "--engine", help="brep: replay the B-Rep engine to the CL (STEP, STL, "
+                                   "BREP); analytic: the mesh of the exact height map after the CL (STL only, "
+                                   "no replay: seconds for any program; box stocks, tools of revolution)."),
+        grid: Optional[float] = typer.Option(None, "--grid", min=1e-3, help="With --engine analytic: the height "
+                                             "map's grid step, mm (default: an eighth of the smallest tool radius)."),
     ) -> None:
         """Write the in-process workpiece after CL N as STEP, STL or BREP."""
         from fusioncut.engines.brep.export import IPW_SUFFIXES, export_ipw as write_ipw
 
-        if out.suffix.lower() not in IPW_SUFFIXES:
-            raise ValueError(f"{out}: unsupported workpiece format {out.suffix!r} (use .step, .stp, .stl or .brep)")
+        if engine not in ("brep", "analytic"):
+            raise ValueError(f"--engine {engine!r}: use brep or analytic")
+        if out.suffix.lower() not in (IPW_SUFFIXES if engine == "brep" else {".stl": "STL"}):
+            raise ValueError(f"{out}: unsupported workpiece format {out.suffix!r} (use .step, .stp, .stl or .brep; "
+                             "with --engine analytic, .stl)")
         if not out.parent.is_dir():
             raise ValueError(f"{out.parent}: the output folder does not exist")
+        if engine == "analytic":
+            _export_height_map(_load(source, cl, None), cl, out, grid)
+            return
         state, _ = _replay(_load(source, cl, None), cl)
         kind = write_ipw(state.engine.ipw, out, deflection)
         extra = f", deflection {deflection} mm" if kind == "STL" else ""
         console.print(f"wrote {escape(str(out))} ({kind}{extra}, {_size(out)}): the workpiece after CL {cl} of {state.cl_count}, "
                       f"{state.engine.ipw_volume:.3f} mm³", highlight=False)
+
+
+def _export_height_map(inputs, cl: int, out: Path, grid: float | None) -> None:
+    """The analytic engine's workpiece after CL ``cl`` as an STL (:meth:`AnalyticEngine.ipw_mesh`):
+    the CLs up to it are only indexed (their sweeps), nothing is cut, so it takes seconds."""
+    from fusioncut.engines.analytic.engine import AnalyticEngine
+    from fusioncut.engines.cl_maps import cl_sequence
+    from fusioncut.io.mesh import mesh_volume, write_stl
+
+    toolpath, stock, options, default_tool, _ = inputs
+    engine = AnalyticEngine(options)
+    engine.check_tools(toolpath, default_tool)
+    engine.start(stock)
+    total = 0
+    for c in cl_sequence(toolpath, options, default_tool):
+        if c.index <= cl:
+            engine.index_only(c)
+        total = c.index + 1
+    triangles = engine.ipw_mesh(grid)
+    write_stl(out, triangles, f"FusionCut IPW after CL {cl}, analytic height map")
+    console.print(f"wrote {escape(str(out))} (STL of the analytic engine's height map, {len(triangles):,} triangles, "
+                  f"{_size(out)}): the workpiece after CL {cl} of {total}, the mesh enclosing "
+                  f"{mesh_volume(triangles):.3f} mm³", highlight=False)
