@@ -28,12 +28,11 @@ The engine option ``engine="analytic"`` runs :class:`~fusioncut.engines.analytic
 is written; with ``workers`` or ``scheduler`` its CLs are computed in chunks on Dask workers
 (:mod:`fusioncut.engines.analytic.parallel`, the same rows); it keeps no B-Rep workpiece, so the
 IPW export and snapshots are STL only, a mesh of its exact height map (one warning says so; no
-STEP). ``engine="auto"`` (the default) is resolved
-before anything is written (:func:`resolve_engine`): the analytic engine where it applies to the
-whole run and no IPW export or snapshot is asked, else the B-Rep engine, with one log line saying
-why. ``metadata.json``'s ``engine_options.engine`` and the checkpoint's ``run.json`` record the
-engine that ran (a checkpoint of the other engine is not resumed), and each ``cl`` row its
-``engine``.
+STEP). ``engine="auto"`` (the default) is resolved before anything is written
+(:func:`resolve_engine`): the analytic engine where it applies to the whole run and no IPW export
+or snapshot is asked, else the B-Rep engine, with one log line saying why. ``metadata.json``'s
+``engine_options.engine`` and the checkpoint's ``run.json`` record the engine that ran (a checkpoint
+of the other engine is not resumed), and each ``cl`` row its ``engine``.
 """
 from __future__ import annotations
 

@@ -146,7 +146,7 @@ class ParallelAnalyticEngine:
     def ipw_volume(self) -> float:
         return self._local.ipw_volume
 
-    def ipw_mesh(self, step: float | None = None):
+    def ipw_mesh(self, step: float | None = None) -> Any:
         """:meth:`AnalyticEngine.ipw_mesh` of the local engine, which indexes every CL the workers did."""
         return self._local.ipw_mesh(step)
 
