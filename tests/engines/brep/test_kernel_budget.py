@@ -20,12 +20,20 @@ import pytest
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep import budget as budget_mod
 from fusioncut.engines.brep import occ, solid_cut
+from fusioncut.engines.brep import sweep as sweep_mod
 from fusioncut.engines.brep.budget import Deadline, KernelBudgetExceeded, guarded
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.brep.occ import bounding_box
 from fusioncut.errors import InputError
 from fusioncut.io.job import engine_option_fields
-from fusioncut.model import BoxStock, CLStatus, FlatEndMill, LinearMove, Toolpath
+from fusioncut.model import (
+    BallEndMill,
+    BoxStock,
+    CLStatus,
+    FlatEndMill,
+    LinearMove,
+    Toolpath,
+)
 
 TOOL = FlatEndMill(6, 15)
 STOCK = BoxStock((0, 0, -10), (40, 30, 0))
@@ -84,30 +92,36 @@ def test_a_cl_over_budget_is_failed_its_shapes_saved_and_the_next_cl_cut_from_th
     assert STOCK.volume - engine.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-9)
 
 
-def test_a_hung_fuse_of_the_sweeps_tool_copies_is_failed_and_the_next_cl_cut_from_the_workpiece_before_it(
+def test_a_hung_fuse_in_a_sweeps_construction_is_failed_and_the_next_cl_cut_from_the_workpiece_before_it(
         monkeypatch, tmp_path):
-    """A sweep's fuse of tool copies (here the sampled sweeps', about a second each) runs in the kernel's child under the
-    CL's budget: one that hangs (a sleep patched in for B's copies, the child forked after the
-    patch) is killed at the budget, B is FAILED and C is cut from the workpiece A left."""
+    """A sweep's Booleans (here a ball end mill's steep ramps, each a fuse of its end tools and the
+    prisms between, about 0.2 s) run in the kernel's child under the CL's budget: one that hangs (a
+    sleep patched in for B's, the child forked after the patch) is killed at the budget, B is FAILED
+    and C is cut from the workpiece A left."""
+    ball = BallEndMill(6, 15)
+    a, b, c = (LinearMove((-5, 15, 2), (10, 15, -2), feed=800, tool=1),
+               LinearMove((10, 15, -2), (16, 15, -4), feed=800, tool=1),
+               LinearMove((16, 15, -4), (38, 15, -4), feed=800, tool=1))
     real = occ.fuse_all
 
     def slow_for_b(shapes, *args, **kwargs):
-        if abs(min(bounding_box(s)[0][0] for s in shapes) - (B.start[0] - 3.0)) < 0.5:
+        if abs(max(bounding_box(s)[1][0] for s in shapes) - 9.0) < 0.5:  # B's ramp, built at the origin
             time.sleep(60.0)
         return real(shapes, *args, **kwargs)
 
-    def sampled(moves, budget):
-        engine = BRepEngine(EngineOptions(kernel_budget_s=budget, failure_dir=tmp_path, sweep="sampled", **OPTIONS))
-        return list(engine.run(Toolpath(tuple(moves), {1: TOOL}), STOCK)), engine
+    def cut(moves, budget):
+        sweep_mod._sweep_at_origin.cache_clear()  # B's sweep is built, not taken from an earlier test's cache
+        engine = BRepEngine(EngineOptions(kernel_budget_s=budget, failure_dir=tmp_path, **OPTIONS))
+        return list(engine.run(Toolpath(tuple(moves), {1: ball}), STOCK)), engine
 
     monkeypatch.setattr(occ, "fuse_all", slow_for_b)
     t0 = time.perf_counter()
-    maps, engine = sampled((A, B, C), 5.0)
+    maps, engine = cut((a, b, c), 5.0)
     assert time.perf_counter() - t0 < 30.0
     assert [m.status for m in maps] == [CLStatus.ENGAGED, CLStatus.FAILED, CLStatus.ENGAGED]
     assert "a fuse of solids ran past the kernel budget of 5 s" in maps[1].reason
     monkeypatch.undo()
-    without_b, _ = sampled((A, C), 60.0)
+    without_b, _ = cut((a, c), 5.0)
     assert same(maps[2], without_b[1]) and same(maps[0], without_b[0])
     assert STOCK.volume - engine.ipw_volume == pytest.approx(sum(m.removed_volume for m in maps), rel=1e-9)
 
