@@ -72,8 +72,8 @@ EXPORT_BUDGETS = 10  # an IPW export (joining every cell, then writing) may take
 PARALLEL_CELL_SIZE = EngineOptions().cell_size  # mm: the cells of a parallel run whose job asks for none
 
 __all__ = [
-    "OperationSummary", "PreparedJob", "RunPlan", "RunResult", "prepare_job", "read_toolpath", "resolve_engine", "run_job",
-    "run_toolpath",
+    "OperationSummary", "PreparedJob", "RunPlan", "RunResult", "export_budget_s", "prepare_job", "read_toolpath",
+    "resolve_engine", "run_job", "run_toolpath",
 ]
 
 
@@ -538,12 +538,10 @@ def _export(engine: Engine, paths: list[Path]) -> list[Path]:
         log.warning("the %s engine keeps no workpiece to write %s", engine.kind.value,
                     ", ".join(p.name for p in paths))
         return written
-    budget = engine.options.kernel_budget_s
     for p in paths:
         try:
-            # joins the cells into one solid and keeps OCCT's output quiet; in the kernel's killable
-            # child, as the CLs' Booleans, with EXPORT_BUDGETS of their budget
-            export_ipw(ipw, p, budget_s=None if budget is None else EXPORT_BUDGETS * budget)
+            # joins the cells into one solid and keeps OCCT's output quiet, in the kernel's killable child
+            export_ipw(ipw, p, budget_s=export_budget_s(engine.options))
             written.append(p)
         except KeyboardInterrupt:  # the run is done and its rows written: only the file is given up
             log.warning("interrupted while writing %s: not written", p)
@@ -551,6 +549,13 @@ def _export(engine: Engine, paths: list[Path]) -> list[Path]:
         except Exception as e:  # noqa: BLE001 - OCP raises its own types; the run itself succeeded
             log.error("could not write %s: %s", p, e)
     return written
+
+
+def export_budget_s(options: EngineOptions) -> float | None:
+    """The wall time (s) an IPW export may take: :data:`EXPORT_BUDGETS` of a CL's kernel budget
+    (None: no budget, as the CLs have none)."""
+    budget = options.kernel_budget_s
+    return None if budget is None else EXPORT_BUDGETS * budget
 
 
 def _export_mesh(engine: Engine, paths: list[Path]) -> list[Path]:

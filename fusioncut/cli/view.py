@@ -135,11 +135,10 @@ def register(app: typer.Typer) -> None:
         if engine == "analytic":
             _export_height_map(_load(source, cl, None), cl, out, grid)
             return
-        from fusioncut.runner import EXPORT_BUDGETS
+        from fusioncut.runner import export_budget_s
 
         state, options = _replay(_load(source, cl, None), cl)
-        budget = options.kernel_budget_s  # the write under the kernel budget, as a run's export
-        kind = write_ipw(state.engine.ipw, out, deflection, budget_s=None if budget is None else EXPORT_BUDGETS * budget)
+        kind = write_ipw(state.engine.ipw, out, deflection, budget_s=export_budget_s(options))  # as a run's export
         extra = f", deflection {deflection} mm" if kind == "STL" else ""
         console.print(f"wrote {escape(str(out))} ({kind}{extra}, {_size(out)}): the workpiece after CL {cl} of {state.cl_count}, "
                       f"{state.engine.ipw_volume:.3f} mm³", highlight=False)

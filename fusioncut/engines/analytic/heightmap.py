@@ -17,6 +17,7 @@ smallest tool radius cut so far, coarsened until the grid has at most :data:`MAX
 file holds two triangles a node, 50 bytes each).
 
 >>> import numpy as np
+>>> from fusioncut.io.mesh import mesh_volume
 >>> xs, ys = np.array([0.0, 1.0]), np.array([0.0, 2.0])
 >>> tri = ipw_mesh(xs, ys, np.full((2, 2), 3.0), 0.0)
 >>> len(tri), round(float(mesh_volume(tri)), 12)
@@ -30,9 +31,8 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.sweeps import sweep_floor, sweep_lower
-from fusioncut.io.mesh import mesh_volume
 
-__all__ = ["MAX_NODES", "NODE_RADII", "grid", "height_map", "ipw_mesh", "mesh_volume"]
+__all__ = ["MAX_NODES", "NODE_RADII", "grid", "height_map", "ipw_mesh"]
 
 MAX_NODES = 500_000  # grid nodes of a mesh, a bound
 NODE_RADII = 0.125  # the grid step, in radii of the smallest tool
