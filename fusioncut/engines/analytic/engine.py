@@ -38,8 +38,10 @@ ones (a checkpoint of another toolpath is refused). There is no B-Rep in-process
 
 The CL segments are the B-Rep engine's (:func:`fusioncut.engines.segments.segments_for`), so CL
 indices match; a piece of a ramp or helix is swept along the programmed path itself, not as the
-B-Rep engine's level step. Not yet here: a shank or neck of another radius than the flutes' top
-(see :mod:`.profile`), stocks other than a box.
+B-Rep engine's level step. A neck or shank wider than the flutes is one more sweep per CL, of a
+flat-bottomed part of the tool (:func:`.profile.upper_parts`, :meth:`AnalyticEngine.part_sweeps`):
+its removed volume is what it takes beyond the CL's lower parts, its contact is shank contact. Not
+yet here: stocks other than a box.
 """
 from __future__ import annotations
 
@@ -60,7 +62,7 @@ from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin,
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
-                                               profile_radius, profile_radius_slope)
+                                               profile_radius, profile_radius_slope, upper_parts)
 from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
@@ -84,6 +86,20 @@ log = logging.getLogger("fusioncut.analytic")
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
 SWEEPS = "ipw-sweeps.npz"  # the engine state; named like the B-Rep engine's IPW files so that a
 # fresh run clears it with them
+
+
+@dataclass(frozen=True)
+class PartSweep:
+    """The sweep of one convex part of the tool over a CL (:func:`.profile.upper_parts`): its lower
+    profile, row (:data:`.sweeps.SWEEP_COLUMNS`, the path raised by ``height``), footprint box (x0,
+    y0, x1, y1) and lowest height (mm); ``height`` is the part's bottom above the tool's tip (0 for
+    the cutting part)."""
+
+    profile: LowerProfile
+    row: np.ndarray
+    box: tuple[float, float, float, float]
+    z_low: float
+    height: float = 0.0
 
 
 class UnsupportedStock(InputError):
@@ -234,8 +250,7 @@ class AnalyticEngine:
 
     def index_only(self, cl: CL) -> None:
         """Take CL ``cl`` as done without computing it: its sweep is indexed, nothing is counted."""
-        profile = lower_profile(cl.tool)
-        self._take(cl, profile, *sweep_row(cl.move, profile, self._tools.index_of(profile)))
+        self._take(cl, self.part_sweeps(cl))
 
     def record(self, cl: CL, m: EngagementMap) -> None:
         """Take CL ``cl`` as done by another engine on the same path (a parallel worker): its sweep
@@ -270,11 +285,27 @@ class AnalyticEngine:
             m = replace(m, timings_ms=tuple(timings.items()))
         return m
 
-    def _take(self, cl: CL, profile: LowerProfile, row: np.ndarray, box: tuple[float, float, float, float],
-              z_low: float) -> None:
-        """Take CL ``cl``'s sweep (``row``, footprint ``box``, lowest tip ``z_low``) as cut."""
-        self._index_of(profile).add(row, box, z_low)
-        self._done.append((cl, box))
+    def part_sweeps(self, cl: CL) -> list[PartSweep]:
+        """The sweeps of CL ``cl``'s tool parts: the cutting part's, then each wider neck or shank's
+        (:func:`.profile.upper_parts`) whose lowest point is below the stock's top (one above it
+        can never meet material, and is left out)."""
+        profile = lower_profile(cl.tool)
+        out = [PartSweep(profile, *sweep_row(cl.move, profile, self._tools.index_of(profile)))]
+        for part in upper_parts(cl.tool):
+            row, box, z_low = sweep_row(cl.move, part.profile, self._tools.index_of(part.profile))
+            if z_low + part.height >= self.stock[5]:
+                break  # the parts come by increasing height
+            row[3] += part.height
+            row[6] += part.height
+            out.append(PartSweep(part.profile, row, box, z_low + part.height, part.height))
+        return out
+
+    def _take(self, cl: CL, parts: list[PartSweep]) -> None:
+        """Take CL ``cl``'s part sweeps (:meth:`part_sweeps`) as cut."""
+        index = self._index_of(parts[0].profile)
+        for p in parts:
+            index.add(p.row, p.box, p.z_low)
+        self._done.append((cl, _union(p.box for p in parts)))
 
     def _fallback(self, cl: CL, why: str) -> EngagementMap:
         """CL ``cl`` by :func:`.fallback.brep_fallback` (the analytic step raised ``why``), its sweep
@@ -284,30 +315,33 @@ class AnalyticEngine:
         log.warning("CL %d (%s): the analytic engine failed (%s); the B-Rep engine computes it on a local workpiece",
                     cl.index, cl.move.source, why)
         try:
-            profile = lower_profile(cl.tool)
-            row, box, z_low = sweep_row(cl.move, profile, self._tools.index_of(profile))
+            parts = self.part_sweeps(cl)
         except Exception as exc:  # noqa: BLE001 - no sweep to index: this CL fails, the run goes on
             return EngagementMap(**cl_base(cl), status=CLStatus.FAILED, engine=EngineKind.ANALYTIC.value,
                                  reason=f"analytic engine: {why}; its sweep cannot be built: {exc}")
-        m = brep_fallback(cl, box, self._done, self.stock, self.options, why)
-        self._take(cl, profile, row, box, z_low)
+        m = brep_fallback(cl, _union(p.box for p in parts), self._done, self.stock, self.options, why)
+        self._take(cl, parts)
         self.removed_total += m.removed_volume
         return m
 
     def _step(self, cl: CL) -> EngagementMap:
         move, tool = cl.move, cl.tool
         t0 = time.perf_counter()
-        profile = lower_profile(tool)
+        parts = self.part_sweeps(cl)
+        cut = parts[0]
+        row, profile = cut.row, cut.profile
         index = self._index_of(profile)
-        row, box, z_low = sweep_row(move, profile, self._tools.index_of(profile))
-        stock = np.array(self.stock)
-        near = index.near((box[0] - WALL_EPS, box[1] - WALL_EPS, box[2] + WALL_EPS, box[3] + WALL_EPS),
+        whole = _union(p.box for p in parts)
+        near = index.near((whole[0] - WALL_EPS, whole[1] - WALL_EPS, whole[2] + WALL_EPS, whole[3] + WALL_EPS),
                           z_max=self.stock[5])
         C, CB = index.rows[near], index.boxes[near]
-        PP, NPC, RR = self._tools.profiles, self._tools.counts, self._tools.radii
+        PP, NPC = self._tools.profiles, self._tools.counts
         t1 = time.perf_counter()
         edges = self._band_edges(row[6], tool)
-        removed, band_volumes = self._removed(row, profile, C, CB, box, edges)
+        removed, band_volumes = self._removed(row, profile, C, CB, cut.box, edges)
+        for i, p in enumerate(parts[1:], 1):
+            # what a wider part takes beyond the CL's lower parts: theirs count as earlier sweeps
+            removed += self._removed(p.row, p.profile, *_with_own(C, CB, parts[:i]), p.box, np.zeros(0))[0]
         t2 = time.perf_counter()
         timings = {"index": (t1 - t0) * 1e3, "volume": (t2 - t1) * 1e3}
         idle = CLStatus.RAPID if move.is_rapid else CLStatus.AIR
@@ -316,18 +350,9 @@ class AnalyticEngine:
         if removed <= VOLUME_EPS:
             outcome = CutOutcome(idle, method=SweepMethod.EXACT, timings=timings)
         else:
-            # the slices are on the tool at the CL's end: a point there meets only the sweeps that can
-            # shape the material in its cell of a grid over the tool's square (contact.sweep_grid)
-            ex, ey, reach = row[4], row[5], profile.radius + 2 * WALL_EPS
-            at_end = ((CB[:, 0] <= ex + reach) & (CB[:, 2] >= ex - reach) & (CB[:, 1] <= ey + reach)
-                      & (CB[:, 3] >= ey - reach))
-            Ce, CBe = C[at_end], CB[at_end]
-            grid = sweep_grid(ex - reach, ey - reach, 2 * reach, END_GRID, row, profile.pieces, profile.radius, Ce, PP,
-                              NPC, RR, self.stock[2], self.stock[5], 2 * WALL_EPS)
-            args = (row, profile.pieces, profile.radius, Ce, CBe, PP, NPC, RR, stock, WALL_EPS, *grid)
-            shaping = Ce[np.unique(grid[2])]  # the sweeps that can shape the material at the end
-            levels = sorted({self.stock[5], *shaping[:, 3], *shaping[:, 6]})
-            dz = self.options.slice_height
+            top, ez, dz = self.stock[5], row[6], self.options.slice_height
+            args, shaping = self._end_args(cut, parts, C, CB)
+            levels = sorted({top, *shaping[:, 3], *shaping[:, 6]})
             z_range = contact_range(args, 0.0, tool.flute_length, dz, levels)
             heights = slice_heights(z_range, tool, dz)
             for z, active in heights:
@@ -335,25 +360,57 @@ class AnalyticEngine:
             t3 = time.perf_counter()
             timings["contact"] = (t3 - t2) * 1e3
             flute_area = shank_area = 0.0
+            warnings: list[str] = []
+            wider = upper_parts(tool)
             if z_range is not None:
-                ez = row[6]
-                breaks = _area_breaks(shaping, PP, NPC, self.stock[5] - ez, ez)
+                breaks = _area_breaks(shaping, PP, NPC, top - ez, ez)
                 flute_area = contact_area(lambda z: _width(args, z), profile.pieces, *z_range, breaks)[0]
-                shank = contact_range(args, tool.flute_length, math.inf, dz, levels) \
+                # the cutting part taken straight up, as it is swept, up to the first wider part
+                shank = contact_range(args, tool.flute_length, wider[0].height if wider else math.inf, dz, levels) \
                     if z_range[1] >= tool.flute_length else None
                 if shank is not None:
                     shank_area = contact_area(lambda z: _width(args, z), profile.pieces, *shank, breaks)[0]
+                    warnings += _narrow_neck(tool, profile, shank)
+            for i, p in enumerate(parts[1:], 1):
+                # a wider neck or shank touches wherever it meets material, up to the next wider part
+                p_args, p_shaping = self._end_args(p, parts, C, CB)
+                p_levels = sorted({top, *p_shaping[:, 3], *p_shaping[:, 6]})
+                p_top = wider[i].height - p.height if i < len(wider) else math.inf
+                rng = contact_range(p_args, 0.0, p_top, dz, p_levels)
+                if rng is not None:
+                    p_breaks = _area_breaks(p_shaping, PP, NPC, top - p.row[6], p.row[6])
+                    shank_area += contact_area(lambda z: _width(p_args, z), p.profile.pieces, *rng, p_breaks)[0]
             timings["area"] = (time.perf_counter() - t3) * 1e3
             outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
                                  method=SweepMethod.EXACT, timings=timings, z_range=z_range,
                                  band_volumes=band_volumes if len(edges) else None, flute_area=flute_area,
-                                 shank_area=shank_area)
+                                 shank_area=shank_area, warnings=tuple(warnings))
         m = engagement_map(cl, outcome, heights, arcs, self.options.slice_height,
                            self.options.min_chip_thickness)
-        self._take(cl, profile, row, box, z_low)  # the state changes last: a step that raised left it as it was
+        self._take(cl, parts)  # the state changes last: a step that raised left it as it was
         self.removed_total += removed
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))
+
+    def _end_args(self, part: PartSweep, parts: list[PartSweep], C: np.ndarray, CB: np.ndarray
+                  ) -> tuple[tuple, np.ndarray]:
+        """(the arguments of :func:`.contact.slice_arcs` for the slices of ``part`` at the CL's end, the
+        sweeps that can shape the material there). A point there meets only the sweeps that can shape
+        the material in its cell of a grid over the part's square (:func:`.contact.sweep_grid`): the
+        earlier sweeps and the CL's other parts' sweeps, which hold what those parts took during the
+        CL (they hold no point of this part's slices at the end itself: a wider part is higher, a
+        narrower one stands inside it)."""
+        s, row, R = self.stock, part.row, part.profile.radius
+        C, CB = _with_own(C, CB, [p for p in parts if p is not part])
+        ex, ey, reach = row[4], row[5], R + 2 * WALL_EPS
+        at_end = ((CB[:, 0] <= ex + reach) & (CB[:, 2] >= ex - reach) & (CB[:, 1] <= ey + reach)
+                  & (CB[:, 3] >= ey - reach))
+        Ce, CBe = C[at_end], CB[at_end]
+        t = self._tools
+        grid = sweep_grid(ex - reach, ey - reach, 2 * reach, END_GRID, row, part.profile.pieces, R, Ce, t.profiles,
+                          t.counts, t.radii, s[2], s[5], 2 * WALL_EPS)
+        args = (row, part.profile.pieces, R, Ce, CBe, t.profiles, t.counts, t.radii, np.array(s), WALL_EPS, *grid)
+        return args, Ce[np.unique(grid[2])]
 
     def _band_edges(self, ez: float, tool: MillingTool) -> np.ndarray:
         """Machine heights (mm) of the slice bands' edges from the tip at ``ez`` up to the flutes' or
@@ -414,6 +471,32 @@ class AnalyticEngine:
             total += v
             bands += vb
         return float(total), tuple(float(v) for v in bands)
+
+
+def _narrow_neck(tool: MillingTool, profile: LowerProfile, touching: tuple[float, float]) -> list[str]:
+    """The warning for a neck narrower than the flutes touching material within ``touching`` (mm above
+    the tip, where the cutting part taken straight up touches): the real neck would leave an
+    overhang there (:mod:`.profile`), which the height field takes as cut."""
+    neck = tool.neck_radius
+    if neck is None or tool.shoulder_length is None or neck >= profile.radius - 1e-9 \
+            or touching[0] >= tool.shoulder_length:
+        return []
+    return [f"the neck ({2 * neck:g} mm) is narrower than the flutes ({2 * profile.radius:g} mm) and meets material "
+            "here: the analytic engine takes it as wide as the flutes, so what it would leave hanging is cut "
+            "(the brep engine models the neck)"]
+
+
+def _union(boxes) -> tuple[float, float, float, float]:
+    """The box (x0, y0, x1, y1) holding every box of ``boxes``."""
+    bs = np.array(list(boxes)).reshape(-1, 4)
+    return (float(bs[:, 0].min()), float(bs[:, 1].min()), float(bs[:, 2].max()), float(bs[:, 3].max()))
+
+
+def _with_own(C: np.ndarray, CB: np.ndarray, parts: list[PartSweep]) -> tuple[np.ndarray, np.ndarray]:
+    """The earlier sweeps ``C`` (boxes ``CB``) followed by the CL's part sweeps ``parts``."""
+    if not parts:
+        return C, CB
+    return np.vstack([C, *(p.row[None, :] for p in parts)]), np.vstack([CB, np.array([p.box for p in parts])])
 
 
 def _found(args: tuple, z: float) -> np.ndarray:

@@ -61,6 +61,7 @@ class SweepIndex:
         self.z_low = np.zeros(64)
         self.size = 0
         self._bins: dict[tuple[int, int], list[int]] = defaultdict(list)
+        self._latest: dict[float, int] = {}  # per tool column, its latest row (a CL's parts interleave)
 
     def _bin_range(self, box) -> tuple[range, range]:
         s = self.bin_size
@@ -68,24 +69,26 @@ class SweepIndex:
                 range(math.floor(box[1] / s), math.floor(box[3] / s) + 1))
 
     def add(self, row: np.ndarray, box: tuple[float, float, float, float], z_low: float) -> int:
-        """Store a sweep; one that continues the last one (:func:`continues`) is merged into it, so
-        a move cut into many CLs stays one sweep (the union of the pieces' sweeps is the sweep of
-        their joined path: the lower surface is a minimum over the path). The row's index."""
-        if self.size and continues(self.rows[self.size - 1], row):
-            k = self.size - 1
+        """Store a sweep; one that continues the latest sweep of the same tool part (:func:`continues`,
+        the ``tool`` column) is merged into it, so a move cut into many CLs stays one sweep per part
+        of the tool (the union of the pieces' sweeps is the sweep of their joined path: the lower
+        surface is a minimum over the path). The row's index."""
+        tool = float(row[12])
+        k = self._latest.get(tool)
+        if k is not None and continues(self.rows[k], row):
             last = self.rows[k]
             last[4:7] = row[4:7]
             last[11] += row[11]
             b = self.boxes[k]
+            old = self._bin_range(b)
             box = (min(b[0], box[0]), min(b[1], box[1]), max(b[2], box[2]), max(b[3], box[3]))
             self.boxes[k] = box
             self.z_low[k] = min(self.z_low[k], z_low)
             xs, ys = self._bin_range(box)
             for i in xs:
                 for j in ys:
-                    cell = self._bins[(i, j)]
-                    if not cell or cell[-1] != k:
-                        cell.append(k)
+                    if i not in old[0] or j not in old[1]:  # the bins the grown box newly covers
+                        self._bins[(i, j)].append(k)
             return k
         if self.size == self.rows.shape[0]:
             grow = self.rows.shape[0]
@@ -95,6 +98,7 @@ class SweepIndex:
         k = self.size
         self.rows[k], self.boxes[k], self.z_low[k] = row, box, z_low
         self.size += 1
+        self._latest[tool] = k
         xs, ys = self._bin_range(box)
         for i in xs:
             for j in ys:

@@ -6,8 +6,16 @@ profile** is the height of the tool's lowest point at radial distance ``d`` from
 Above it the engine takes the tool to extend straight up at radius ``R`` (the radius where the
 walk stops: a flat or ball end mill's diameter / 2, a tapered mill's radius at the flute length).
 That is the 3-axis model of issue 26: a point is removed by a sweep iff it lies above the sweep's
-lower surface within its footprint. A shank or neck of another radius than ``R`` is not modelled
-(a wider shank's contact is not seen; a narrower neck is taken as full width).
+lower surface within its footprint.
+
+A neck or shank **wider** than everything below it makes the tool's outline step outward, and its
+lower profile stops being convex. The tool is then the union of convex parts, each swept on its
+own (:func:`upper_parts`): the cutting part taken straight up at ``R``, and each wider cylinder a
+flat-bottomed part from its height above the tip straight up. A point is removed by the CL iff one
+part's sweep removes it, so the lower surface of the whole sweep is the least of the parts' and
+stays exact. A neck or shank **narrower** than what is below it is taken at that width (its sweep
+would leave an overhang, which no height field holds: the contact it would not make is reported as
+shank contact).
 
 ``f`` is stored as pieces in increasing ``d``, one row of :data:`PIECE_COLUMNS` each:
 
@@ -93,6 +101,41 @@ def lower_profile(tool: MillingTool) -> LowerProfile:
         prev = s1
     out = LowerProfile(pieces, float(pieces[-1, 2]))
     object.__setattr__(tool, "_analytic_lower_profile", out)
+    return out
+
+
+@dataclass(frozen=True)
+class UpperPart:
+    """A cylinder of the tool wider than everything below it, from ``height`` mm above the tip straight
+    up: swept as a flat end mill (``profile``: flat, of the cylinder's radius) whose tip is
+    ``height`` above the tool's."""
+
+    height: float
+    profile: LowerProfile
+
+
+def upper_parts(tool: MillingTool) -> tuple[UpperPart, ...]:
+    """The non-cutting cylinders (neck, shank) wider than the lower profile's ``R`` and than the
+    cylinders below them, by increasing height (cached on the tool); empty for a tool as wide as its
+    flutes up its shank. A cylinder counts where the tool models it (the shank up to its length)."""
+    cached = tool.__dict__.get("_analytic_upper_parts")
+    if cached is not None:
+        return cached
+    cylinders = []
+    shank_from = tool.flute_length
+    if tool.neck_radius is not None and tool.shoulder_length is not None:
+        cylinders.append((tool.flute_length, tool.neck_radius))
+        shank_from = tool.shoulder_length
+    if tool.length > shank_from + _EPS:
+        cylinders.append((shank_from, tool.shank_radius))
+    widest, parts = lower_profile(tool).radius, []
+    for height, radius in cylinders:
+        if radius > widest + 1e-9:
+            flat = LowerProfile(np.array([[LINE, 0.0, radius, 0.0, 0.0, 0.0]]), float(radius))
+            parts.append(UpperPart(float(height), flat))
+            widest = radius
+    out = tuple(parts)
+    object.__setattr__(tool, "_analytic_upper_parts", out)
     return out
 
 

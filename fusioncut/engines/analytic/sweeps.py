@@ -21,7 +21,8 @@ level moves: there the lowest tool is the one nearest ``p``; a ball's minimum in
 its envelope cylinder's lowest point). On an arc the points within ``R``
 form windows of angle around the direction of ``p``; each window is sampled at :data:`ARC_STEP`
 rad at most and every sampled local minimum is refined by Brent's method to 1e-10 of its bracket: minima
-closer together than the step could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``.
+closer together than the step could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``;
+nor does a flat end mill's helix, whose ``z(t) + f`` is linear in ``t`` over a window: lowest at one of its ends.
 
 ``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
 ``R``, so that a wall an earlier sweep left exactly where the tool stands now (a retraced pass) is
@@ -310,6 +311,7 @@ def arc_lower(S, P, R, px, py, eps):
             return math.inf
         return S[3] + profile_height(P, d if d < R else R)
     best = math.inf
+    flat = P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0  # a flat end mill's f: constant
     k0 = int(math.ceil((lo - w) / (2.0 * math.pi)))
     k1 = int(math.floor((hi + w) / (2.0 * math.pi)))
     for k in range(k0, k1 + 1):
@@ -320,7 +322,11 @@ def arc_lower(S, P, R, px, py, eps):
         ta, tb = (blo - b0) / sw, (bhi - b0) / sw
         if ta > tb:
             ta, tb = tb, ta
-        best = min(best, _window_min(0, S, P, R, px, py, 0.0, max(ta, 0.0), min(tb, 1.0)))
+        ta, tb = max(ta, 0.0), min(tb, 1.0)
+        if flat:  # z(t) + f is linear in t: lowest at the window's end that is lower
+            best = min(best, P[0, 3] + S[3] + (tb if S[6] < S[3] else ta) * (S[6] - S[3]))
+        else:
+            best = min(best, _window_min(0, S, P, R, px, py, 0.0, ta, tb))
     return best
 
 

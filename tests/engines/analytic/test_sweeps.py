@@ -111,3 +111,24 @@ def test_level_line_and_level_arc_closed_forms(kind):
     # outside the footprint: nothing is removed; on its eps margin the edge's height holds
     assert math.isinf(sweep_lower(line, lp.pieces, R, 0.0, 2.0 + R + 1e-7, 0.0))
     assert sweep_lower(line, lp.pieces, R, 0.0, 2.0 + R + 1e-7, 1e-6) == pytest.approx(-1.5 + lp.f(R), abs=1e-12)
+
+
+@pytest.mark.parametrize("sw, z", [(5.0, (0.0, -3.0)), (-9.0, (-1.0, 2.0)), (2 * math.pi, (0.5, -0.5))])
+def test_flat_end_mill_helix_is_lowest_at_a_window_end(sw, z):
+    """A flat end mill's helix (and a wider shank's, swept as one): its lower surface, taken at a
+    window's end in closed form, is the sampled one's to the samples' rise per step."""
+    lp = lower_profile(FlatEndMill(5, 20))
+    c, rho, a0 = (1.0, -2.0), 4.0, 0.3
+    start = (c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z[0])
+    end = (c[0] + rho * math.cos(a0 + sw), c[1] + rho * math.sin(a0 + sw), z[1])
+    row = arc_row(start, end, c, rho, a0, sw, 0)
+    rng = np.random.default_rng(7)
+    seen = 0
+    for px, py in rng.uniform(-8, 10, (200, 2)):
+        L = sweep_lower(row, lp.pieces, lp.radius, px, py, 0.0)
+        B = brute_lower(row, lp.pieces, lp.radius, px, py, N_BRUTE)
+        if math.isinf(B) or math.isinf(L):
+            continue
+        seen += 1
+        assert B - 3.0 / N_BRUTE * 1.0001 <= L <= B + 1e-12
+    assert seen > 60
