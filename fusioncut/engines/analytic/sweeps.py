@@ -23,6 +23,9 @@ form windows of angle around the direction of ``p``; each window is sampled at :
 rad at most and every sampled local minimum is refined by Brent's method to 1e-10 of its bracket: minima
 closer together than the step could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``;
 nor does a flat end mill's helix, whose ``z(t) + f`` is linear in ``t`` over a window: lowest at one of its ends.
+A ball's is convex where the window spans at most a quarter turn either side of the direction of
+``p`` (with ``u`` the angle from it, ``d^2 = A - B cos u``, and ``-sqrt(R^2 - d^2)`` has a second
+derivative ``>= 0`` while ``cos u >= 0``): there it is minimised as on a line, from its slope.
 
 ``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
 ``R``, so that a wall an earlier sweep left exactly where the tool stands now (a retraced pass) is
@@ -133,12 +136,29 @@ def line_lower(S, P, R, px, py, eps):
 
 
 @njit(cache=True)
+def _slope(S, P, R, px, py, t):
+    """d/dt of z(t) + f(d(t)) on a line or an arc."""
+    if S[0] == LINE:
+        return _line_slope(S, P, R, px, py, t)
+    return _arc_slope(S, P, R, px, py, t)
+
+
+@njit(cache=True)
+def _value(S, P, R, px, py, t):
+    """z(t) + f(min(d(t), R)) on a line or an arc."""
+    if S[0] == LINE:
+        return _line_value(S, P, R, px, py, t)
+    return _arc_value(0, S, P, R, px, py, 0.0, t)
+
+
+@njit(cache=True)
 def _convex_min(S, P, R, px, py, lo, hi):
-    """min of the convex z(t) + f(d(t)) on [lo, hi] where its slope goes from < 0 to > 0: Illinois
-    steps on the slope (a bisection every third step, or where a slope is infinite), until the
-    convexity bound on the value's error is within :data:`VALUE_TOL` or the bracket is a float apart."""
-    glo = _line_slope(S, P, R, px, py, lo)
-    ghi = _line_slope(S, P, R, px, py, hi)
+    """min of z(t) + f(d(t)) on [lo, hi] where it is convex and its slope goes from < 0 to > 0:
+    Illinois steps on the slope (a bisection every third step, or where a slope is infinite), until
+    the convexity bound on the value's error is within :data:`VALUE_TOL` or the bracket is a float
+    apart."""
+    glo = _slope(S, P, R, px, py, lo)
+    ghi = _slope(S, P, R, px, py, hi)
     wlo, whi = glo, ghi  # the slopes the secant uses: Illinois halves the one kept twice
     side = 0
     for it in range(2 * _BISECTIONS):
@@ -151,7 +171,7 @@ def _convex_min(S, P, R, px, py, lo, hi):
                 mid = m
         if mid <= lo or mid >= hi:
             break
-        g = _line_slope(S, P, R, px, py, mid)
+        g = _slope(S, P, R, px, py, mid)
         if g < 0.0:
             lo, glo, wlo = mid, g, g
             if side == -1:
@@ -163,8 +183,8 @@ def _convex_min(S, P, R, px, py, lo, hi):
                 wlo *= 0.5
             side = 1
         else:
-            return _line_value(S, P, R, px, py, mid)
-    return min(_line_value(S, P, R, px, py, lo), _line_value(S, P, R, px, py, hi))
+            return _value(S, P, R, px, py, mid)
+    return min(_value(S, P, R, px, py, lo), _value(S, P, R, px, py, hi))
 
 
 # -- arcs ----------------------------------------------------------------------------------------
@@ -180,6 +200,38 @@ def _arc_value(mode, S, P, R, px, py, pz, t):
         return z + profile_height(P, d if d < R else R)
     r = profile_radius(P, pz - z)
     return d - r
+
+
+@njit(cache=True)
+def _arc_slope(S, P, R, px, py, t):
+    """d/dt of z(t) + f(d(t)) on an arc (the right derivative where d = 0)."""
+    a = S[10] + t * S[11]
+    ca, sa = math.cos(a), math.sin(a)
+    dx, dy = S[7] + S[9] * ca - px, S[8] + S[9] * sa - py
+    d = math.sqrt(dx * dx + dy * dy)
+    dz = S[6] - S[3]
+    speed = S[9] * S[11]  # the tool's XY velocity is speed * (-sin a, cos a)
+    dd = abs(speed) if d <= 0.0 else speed * (dy * ca - dx * sa) / d
+    if dd == 0.0:
+        return dz
+    return dz + profile_slope(P, d if d < R else R) * dd
+
+
+@njit(cache=True)
+def _ball_window_min(S, P, R, px, py, ta, tb, tc, td):
+    """Least of z(t) + f(d(t)) over a helix window [ta, tb] of a ball whose part within reach ``R``,
+    [tc, td] inside it, spans at most a quarter turn either side of the direction of p: there the
+    value is convex (module docstring), so its minimum is bracketed by its slope's sign; beyond it, on
+    the footprint's ``eps`` margin, ``f`` is held at ``f(R)`` and the value is linear in ``t``: lowest at
+    one of the window's ends."""
+    best = min(_arc_value(0, S, P, R, px, py, 0.0, ta), _arc_value(0, S, P, R, px, py, 0.0, tb))
+    if tc > td:
+        return best
+    if _arc_slope(S, P, R, px, py, tc) >= 0.0:
+        return min(best, _arc_value(0, S, P, R, px, py, 0.0, tc))
+    if _arc_slope(S, P, R, px, py, td) <= 0.0:
+        return min(best, _arc_value(0, S, P, R, px, py, 0.0, td))
+    return min(best, _convex_min(S, P, R, px, py, tc, td))
 
 
 # Brent's minimisation (parabolic steps through the three best points, golden-section steps where
@@ -312,6 +364,14 @@ def arc_lower(S, P, R, px, py, eps):
         return S[3] + profile_height(P, d if d < R else R)
     best = math.inf
     flat = P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0  # a flat end mill's f: constant
+    ball = P.shape[0] == 1 and P[0, 0] == 1.0 and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R
+    wr = -1.0  # a ball's: the half-width of a window's part within R; -1 none (only the eps margin)
+    if ball:
+        kr = (rho * rho + Q * Q - R * R) / (2.0 * rho * Q)
+        if kr < 0.0:
+            ball = False  # more than a quarter turn within reach: sampled, as any profile
+        elif kr <= 1.0:
+            wr = math.acos(kr)
     k0 = int(math.ceil((lo - w) / (2.0 * math.pi)))
     k1 = int(math.floor((hi + w) / (2.0 * math.pi)))
     for k in range(k0, k1 + 1):
@@ -325,6 +385,15 @@ def arc_lower(S, P, R, px, py, eps):
         ta, tb = max(ta, 0.0), min(tb, 1.0)
         if flat:  # z(t) + f is linear in t: lowest at the window's end that is lower
             best = min(best, P[0, 3] + S[3] + (tb if S[6] < S[3] else ta) * (S[6] - S[3]))
+        elif ball:
+            tc, td = 1.0, 0.0
+            clo, chi = max(lo, 2.0 * math.pi * k - wr), min(hi, 2.0 * math.pi * k + wr)
+            if wr >= 0.0 and clo <= chi:
+                tc, td = (clo - b0) / sw, (chi - b0) / sw
+                if tc > td:
+                    tc, td = td, tc
+                tc, td = max(tc, 0.0), min(td, 1.0)
+            best = min(best, _ball_window_min(S, P, R, px, py, ta, tb, tc, td))
         else:
             best = min(best, _window_min(0, S, P, R, px, py, 0.0, ta, tb))
     return best
