@@ -23,9 +23,12 @@ form windows of angle around the direction of ``p``; each window is sampled at :
 rad at most and every sampled local minimum is refined by Brent's method to 1e-10 of its bracket: minima
 closer together than the step could merge. A level arc needs none of it: its lowest tool is the one nearest ``p``;
 nor does a flat end mill's helix, whose ``z(t) + f`` is linear in ``t`` over a window: lowest at one of its ends.
-A ball's is convex where the window spans at most a quarter turn either side of the direction of
-``p`` (with ``u`` the angle from it, ``d^2 = A - B cos u``, and ``-sqrt(R^2 - d^2)`` has a second
-derivative ``>= 0`` while ``cos u >= 0``): there it is minimised as on a line, from its slope.
+Nor does a window where the value is convex: there it is minimised as on a line, from its slope.
+With ``u`` the angle from the direction of ``p`` (at XY distance ``Q`` from the centre),
+``d^2 = A - B cos u`` (``A = rho^2 + Q^2``, ``B = 2 rho Q``), and ``d`` is convex in ``u`` while
+``cos u >= min(rho, Q) / max(rho, Q)`` (``d'' >= 0`` iff ``2 A cos u - B cos^2 u - B >= 0``), so then
+is ``f(d)`` (``f`` convex, non-decreasing); a ball's ``-sqrt(R^2 - d^2)`` is convex further, while
+``cos u >= 0``. A window's part within ``R`` that reaches beyond that is sampled.
 
 ``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
 ``R``, so that a wall an earlier sweep left exactly where the tool stands now (a retraced pass) is
@@ -218,12 +221,11 @@ def _arc_slope(S, P, R, px, py, t):
 
 
 @njit(cache=True)
-def _ball_window_min(S, P, R, px, py, ta, tb, tc, td):
-    """Least of z(t) + f(d(t)) over a helix window [ta, tb] of a ball whose part within reach ``R``,
-    [tc, td] inside it, spans at most a quarter turn either side of the direction of p: there the
-    value is convex (module docstring), so its minimum is bracketed by its slope's sign; beyond it, on
-    the footprint's ``eps`` margin, ``f`` is held at ``f(R)`` and the value is linear in ``t``: lowest at
-    one of the window's ends."""
+def _convex_window_min(S, P, R, px, py, ta, tb, tc, td):
+    """Least of z(t) + f(d(t)) over a helix window [ta, tb] whose part within reach ``R``, [tc, td]
+    inside it (empty: tc > td), the value is convex on (module docstring): its minimum there is
+    bracketed by its slope's sign; beyond it, on the footprint's ``eps`` margin, ``f`` is held at
+    ``f(R)`` and the value is linear in ``t``: lowest at one of the window's ends."""
     best = min(_arc_value(0, S, P, R, px, py, 0.0, ta), _arc_value(0, S, P, R, px, py, 0.0, tb))
     if tc > td:
         return best
@@ -364,14 +366,13 @@ def arc_lower(S, P, R, px, py, eps):
         return S[3] + profile_height(P, d if d < R else R)
     best = math.inf
     flat = P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0  # a flat end mill's f: constant
+    # convex: the value is convex over each window's part within R, of half-width wr (-1: none, only
+    # the eps margin), which spans no more than cos(u) >= limit (module docstring)
     ball = P.shape[0] == 1 and P[0, 0] == 1.0 and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R
-    wr = -1.0  # a ball's: the half-width of a window's part within R; -1 none (only the eps margin)
-    if ball:
-        kr = (rho * rho + Q * Q - R * R) / (2.0 * rho * Q)
-        if kr < 0.0:
-            ball = False  # more than a quarter turn within reach: sampled, as any profile
-        elif kr <= 1.0:
-            wr = math.acos(kr)
+    limit = 0.0 if ball else min(rho, Q) / max(rho, Q)
+    kr = (rho * rho + Q * Q - R * R) / (2.0 * rho * Q)
+    convex = kr >= limit
+    wr = math.acos(kr) if limit <= kr <= 1.0 else -1.0
     k0 = int(math.ceil((lo - w) / (2.0 * math.pi)))
     k1 = int(math.floor((hi + w) / (2.0 * math.pi)))
     for k in range(k0, k1 + 1):
@@ -385,7 +386,7 @@ def arc_lower(S, P, R, px, py, eps):
         ta, tb = max(ta, 0.0), min(tb, 1.0)
         if flat:  # z(t) + f is linear in t: lowest at the window's end that is lower
             best = min(best, P[0, 3] + S[3] + (tb if S[6] < S[3] else ta) * (S[6] - S[3]))
-        elif ball:
+        elif convex:
             tc, td = 1.0, 0.0
             clo, chi = max(lo, 2.0 * math.pi * k - wr), min(hi, 2.0 * math.pi * k + wr)
             if wr >= 0.0 and clo <= chi:
@@ -393,7 +394,7 @@ def arc_lower(S, P, R, px, py, eps):
                 if tc > td:
                     tc, td = td, tc
                 tc, td = max(tc, 0.0), min(td, 1.0)
-            best = min(best, _ball_window_min(S, P, R, px, py, ta, tb, tc, td))
+            best = min(best, _convex_window_min(S, P, R, px, py, ta, tb, tc, td))
         else:
             best = min(best, _window_min(0, S, P, R, px, py, 0.0, ta, tb))
     return best
@@ -459,20 +460,28 @@ def end_velocity(S):
     return -S[9] * S[11] * math.sin(a), S[9] * S[11] * math.cos(a), S[6] - S[3]
 
 
-def brute_lower(S: np.ndarray, P: np.ndarray, R: float, px: float, py: float, n: int = 200_001) -> float:
-    """L(p) by dense sampling of t (for tests): an upper bound that tends to L as n grows."""
+def brute_lower(S: np.ndarray, P: np.ndarray, R: float, px: float, py: float, n: int = 200_001,
+                refine: int = 0) -> float:
+    """L(p) by dense sampling of t (for tests): an upper bound that tends to L as n grows. ``refine``
+    times over, the ``n`` samples are taken again between the best one's neighbours: where the
+    minimum is smooth, within ~(2 / n) ** (refine + 1) of t's range of it."""
     t = np.linspace(0.0, 1.0, n)
-    if S[0] == LINE:
-        cx, cy = S[1] + t * (S[4] - S[1]), S[2] + t * (S[5] - S[2])
-    else:
-        a = S[10] + t * S[11]
-        cx, cy = S[7] + S[9] * np.cos(a), S[8] + S[9] * np.sin(a)
-    d = np.hypot(px - cx, py - cy)
-    z = S[3] + t * (S[6] - S[3])
-    ok = d <= R
-    if not ok.any():
-        return math.inf
-    return float(np.min(z[ok] + _heights(P, d[ok])))
+    best = math.inf
+    for _ in range(refine + 1):
+        if S[0] == LINE:
+            cx, cy = S[1] + t * (S[4] - S[1]), S[2] + t * (S[5] - S[2])
+        else:
+            a = S[10] + t * S[11]
+            cx, cy = S[7] + S[9] * np.cos(a), S[8] + S[9] * np.sin(a)
+        d = np.hypot(px - cx, py - cy)
+        ok = d <= R
+        if not ok.any():
+            return best
+        v = np.where(ok, S[3] + t * (S[6] - S[3]) + _heights(P, np.minimum(d, R)), np.inf)
+        i = int(np.argmin(v))
+        best = min(best, float(v[i]))
+        t = np.linspace(t[max(i - 1, 0)], t[min(i + 1, n - 1)], n)
+    return best
 
 
 @njit(cache=True)

@@ -134,39 +134,23 @@ def test_flat_end_mill_helix_is_lowest_at_a_window_end(sw, z):
     assert seen > 60
 
 
-def _refined_brute(row, lp, px, py):
-    """A ball's least sampled z(t) + f(d(t)) over t (400,001 samples), sampled again 100,001 times
-    between the best sample's neighbours: within ~1e-10 mm of the minimum where it is smooth."""
-    t = np.linspace(0.0, 1.0, N_BRUTE)
-    for _ in range(2):
-        a = row[10] + t * row[11]
-        d = np.hypot(row[7] + row[9] * np.cos(a) - px, row[8] + row[9] * np.sin(a) - py)
-        ok = d <= lp.radius
-        if not ok.any():
-            return math.inf
-        u = np.minimum(d, lp.radius)
-        v = np.where(ok, row[3] + t * (row[6] - row[3]) + lp.radius - np.sqrt(lp.radius ** 2 - u * u), np.inf)
-        i = int(np.argmin(v))
-        best = float(v[i])
-        t = np.linspace(t[max(i - 1, 0)], t[min(i + 1, len(t) - 1)], 100_001)
-    return min(best, float(np.min(v)))
-
-
+@pytest.mark.parametrize("kind", ["ball", "bullnose", "tapered"])
 @pytest.mark.parametrize("rho, sw, z", [(4.0, 5.0, (0.0, -3.0)), (2.0, -9.0, (-1.0, 2.0)), (6.0, 2 * math.pi, (0.5, -0.5)),
                                         (1.0, 12.0, (0.0, -6.0))])
-def test_ball_helix_lower_surface_to_the_refined_samples(rho, sw, z):
-    """A ball's helix: minimised from its slope where a window is convex (within a quarter turn of the
-    direction of p), sampled elsewhere; against samples refined about their least, to 1e-9 mm."""
-    lp = lower_profile(BallEndMill(6, 20))
+def test_helix_lower_surface_to_the_refined_samples(kind, rho, sw, z):
+    """A helix: minimised from its slope where a window is provably convex, sampled elsewhere; against
+    samples refined about their least, to 1e-9 mm."""
+    lp = lower_profile(TOOLS[kind])
     c, a0 = (1.0, -2.0), 0.3
     start = (c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z[0])
     end = (c[0] + rho * math.cos(a0 + sw), c[1] + rho * math.sin(a0 + sw), z[1])
     row = arc_row(start, end, c, rho, a0, sw, 0)
     rng = np.random.default_rng(11)
     seen = 0
-    for px, py in rng.uniform(c[0] - rho - 3.5, c[0] + rho + 3.5, (60, 2)):
+    reach = rho + lp.radius + 0.5
+    for px, py in rng.uniform(-reach, reach, (60, 2)) + np.array(c):
         L = sweep_lower(row, lp.pieces, lp.radius, px, py, 0.0)
-        B = _refined_brute(row, lp, px, py)
+        B = brute_lower(row, lp.pieces, lp.radius, px, py, 100_001, refine=2)
         if math.isinf(B) or math.isinf(L):
             continue
         seen += 1
