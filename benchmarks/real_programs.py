@@ -6,9 +6,12 @@
     python benchmarks/real_programs.py --programs bear --cls 200 --windows 1 --no-brep --workers 2
 
 The programs are the 3-axis programs of ``../shared/data`` that issue 26 names (CAMotics bear, cameo,
-flower_mold, wave, botomata; LinuxCNC 3D_Chips where a tool is known; the Fusion posts), each with
-its project's tools and workpiece where it has a CAMotics project, else its own tool comments and
-the stock the runner infers (:func:`fusioncut.io.stock.infer_stock`); and a generated 3D finishing set
+flower_mold, wave, botomata; LinuxCNC 3D_Chips; the Fusion posts), each with its project's tools and
+workpiece where it has a CAMotics project, else its own tool comments and the stock the runner
+infers (:func:`fusioncut.io.stock.infer_stock`). 3D_Chips names neither in code: its header says "a
+100x100x50mm block with the zero point at the center top" and "a 10mm ball nose", so it runs a
+10 mm ball end mill (25 mm of flutes: the header gives none) in that block. Then the Titan-like
+program (:mod:`titan_program`, full size, its own stock) and a generated 3D finishing set
 (``gen_*``, :mod:`finishing_programs`: ball and bull-nose raster, waterline and spiral passes over a
 free-form surface with a ramp and helical entries).
 
@@ -38,19 +41,21 @@ import math
 import os
 import statistics
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from finishing_programs import GENERATED  # beside this script, on the path when it runs
 from finishing_programs import load as load_generated
+from titan_program import STOCK_MAX, STOCK_MIN, titan_program
 from fusioncut.engines.analytic.engine import AnalyticEngine
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.cl_maps import cl_sequence
 from fusioncut.io.readers import read_toolpath
 from fusioncut.io.stock import infer_stock
 from fusioncut.io.tool_library import read_camotics_project
-from fusioncut.model import CLStatus, MillingTool, Stock, Toolpath
+from fusioncut.model import BallEndMill, BoxStock, CLStatus, MillingTool, Stock, Toolpath
 
 SHARED = Path(os.environ.get("FUSIONCUT_SHARED_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data")
 
@@ -60,6 +65,8 @@ class Program:
     name: str
     path: str  # the G-code, relative to the shared data folder
     project: str | None = None  # a CAMotics project giving the tools and the workpiece
+    tool: MillingTool | None = None  # the tool of moves that name none, where the program says it in prose
+    stock: Stock | None = None  # the workpiece, where the program says it in prose
 
 
 PROGRAMS = (
@@ -74,6 +81,9 @@ PROGRAMS = (
     Program("1110_wall", "fusion-posted/1110_wall_265bit.nc"),
     Program("1117_wall", "fusion-posted/1117_wall_28bit.nc"),
     Program("1072_face", "fusion-posted/1072_face_otherside.nc"),
+    Program("3d_chips", "linuxcnc-nc_files/3D_Chips.ngc", tool=BallEndMill(10.0, 25.0),
+            stock=BoxStock((-50.0, -50.0, -50.0), (50.0, 50.0, 0.0))),
+    Program("titan", ""),
     *(Program(name, "") for name in GENERATED),
 )
 
@@ -83,13 +93,18 @@ def load(program: Program) -> tuple[Toolpath, Stock, MillingTool | None]:
     moves that name none (a project's only tool, as CAMotics takes it; else None)."""
     if program.name in GENERATED:
         return load_generated(program.name)
+    if program.name == "titan":
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "titan.nc"
+            path.write_text(titan_program())
+            return read_toolpath(path), BoxStock(STOCK_MIN, STOCK_MAX), None
     if program.project:
         project = read_camotics_project(SHARED / program.project)
         toolpath = read_toolpath(SHARED / program.path, tools=dict(project.tools))
         default = next(iter(project.tools.values())) if len(project.tools) == 1 else None
         return toolpath, project.stock or infer_stock(toolpath), default
     toolpath = read_toolpath(SHARED / program.path)
-    return toolpath, infer_stock(toolpath), None
+    return toolpath, program.stock or infer_stock(toolpath), program.tool
 
 
 def summary(times: list[float]) -> dict:
