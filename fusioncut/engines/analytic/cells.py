@@ -4,13 +4,17 @@ Machine frame, mm. A cell is an axis-aligned rectangle (x0, y0, x1, y1). Over a 
 height ``max(0, min(h, top) - max(L, bottom))`` (:mod:`.volume`) depends only on the earlier sweeps
 that can be the least lower surface ``h`` somewhere in it. Two closed-form bounds decide that:
 
-* a sweep's **floor** over the cell: its path's lowest tip plus ``f`` at the least XY distance
-  between the cell and its path (for an arc, between the cell and the arc's whole circle), a lower
-  bound of its lower surface there (``f`` grows outward); inf where the cell is beyond its
-  footprint;
-* a line sweep's **ceiling** over a cell inside its footprint (every corner within ``R`` of its
-  path: the footprint is convex): the most of its lower surface at the corners. Its lower surface
+* a sweep's **floor** over the cell: the lowest tip of the part of its path that can reach the cell
+  (a line's whole path; an arc's angles within reach of the cell's circumscribed circle) plus ``f``
+  at the least XY distance between the cell and its path (for an arc, between the cell and the
+  arc's whole circle), a lower bound of its lower surface there (``f`` grows outward); inf where the
+  cell is beyond its footprint;
+* a sweep's **ceiling** over a cell inside its footprint. A line's (every corner within ``R`` of its
+  path: the footprint is convex): the most of its lower surface at the corners; its lower surface
   is convex in (x, y) (see :func:`.volume._nothing_removed`), so that is its maximum over the cell.
+  An arc's: the least over a few tool positions ``t`` whose reach holds the whole cell of
+  ``z(t) + f(the farthest corner's distance)``, an upper bound (the lower surface is at most any
+  one position's, and the distance to a point is largest at a corner); inf where none holds it.
 
 With ``U`` the least of the stock's top and the ceilings, ``h`` (capped by the top) is at most ``U``
 all over the cell: a sweep whose floor is at least ``U`` never lowers it and is left out (the sweep
@@ -86,21 +90,77 @@ def path_distance(S, x0, y0, x1, y1):
 
 
 @njit(cache=True)
+def _arc_low_tip(S, x0, y0, x1, y1, reach):
+    """The lowest tip height (mm) of an arc sweep's path over the angles whose points lie within
+    ``reach`` of the rectangle's circumscribed circle; inf where none does."""
+    mx, my = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    rr = reach + 0.5 * math.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2)
+    qx, qy = mx - S[7], my - S[8]
+    Q, rho, sw = math.sqrt(qx * qx + qy * qy), S[9], S[11]
+    if Q * rho <= 1e-12:
+        return min(S[3], S[6]) if abs(Q - rho) <= rr else math.inf
+    kappa = (rho * rho + Q * Q - rr * rr) / (2.0 * rho * Q)
+    if kappa > 1.0:
+        return math.inf
+    if kappa <= -1.0:
+        return min(S[3], S[6])
+    w = math.acos(kappa)
+    b0 = S[10] - math.atan2(qy, qx)
+    lo, hi = min(b0, b0 + sw), max(b0, b0 + sw)
+    best = math.inf
+    for k in range(int(math.ceil((lo - w) / (2.0 * math.pi))), int(math.floor((hi + w) / (2.0 * math.pi))) + 1):
+        blo, bhi = max(lo, 2.0 * math.pi * k - w), min(hi, 2.0 * math.pi * k + w)
+        if blo <= bhi:
+            for b in (blo, bhi):  # z is linear in the angle: lowest at an end of the stretch
+                best = min(best, S[3] + (b - b0) / sw * (S[6] - S[3]))
+    return best
+
+
+@njit(cache=True)
 def cell_floor(S, P, R, x0, y0, x1, y1, eps):
     """A lower bound (mm) of the sweep's lower surface over the rectangle; inf beyond its footprint
     widened by ``eps``."""
     d = path_distance(S, x0, y0, x1, y1)
     if d > R + eps:
         return math.inf
-    return min(S[3], S[6]) + profile_height(P, min(d, R))
+    low = min(S[3], S[6]) if S[0] == 0.0 else _arc_low_tip(S, x0, y0, x1, y1, R + eps)
+    return low + profile_height(P, min(d, R))
+
+
+@njit(cache=True)
+def _arc_ceiling_at(S, P, R, x0, y0, x1, y1, t):
+    """``z(t) + f(the farthest corner's distance)`` for the arc sweep's tool at ``t`` (mm), where its
+    reach holds the whole rectangle; inf where it does not."""
+    a = S[10] + t * S[11]
+    cx, cy = S[7] + S[9] * math.cos(a), S[8] + S[9] * math.sin(a)
+    far = 0.0
+    for qx, qy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
+        far = max(far, math.sqrt((qx - cx) ** 2 + (qy - cy) ** 2))
+    if far > R:
+        return math.inf
+    return S[3] + t * (S[6] - S[3]) + profile_height(P, far)
+
+
+@njit(cache=True)
+def _arc_ceiling(S, P, R, x0, y0, x1, y1):
+    """An upper bound (mm) of an arc sweep's lower surface over a rectangle (module docstring): the
+    tool positions looked at are the path's ends and where it passes the direction of the
+    rectangle's centre (each turn)."""
+    best = min(_arc_ceiling_at(S, P, R, x0, y0, x1, y1, 0.0), _arc_ceiling_at(S, P, R, x0, y0, x1, y1, 1.0))
+    sw = S[11]
+    b0 = S[10] - math.atan2(0.5 * (y0 + y1) - S[8], 0.5 * (x0 + x1) - S[7])
+    lo, hi = min(b0, b0 + sw), max(b0, b0 + sw)
+    for k in range(int(math.ceil(lo / (2.0 * math.pi))), int(math.floor(hi / (2.0 * math.pi))) + 1):
+        best = min(best, _arc_ceiling_at(S, P, R, x0, y0, x1, y1, (2.0 * math.pi * k - b0) / sw))
+    return best
 
 
 @njit(cache=True)
 def cell_ceiling(S, P, R, x0, y0, x1, y1):
-    """The maximum (mm) of a line sweep's lower surface over a rectangle inside its footprint; inf
-    for an arc or where a corner is beyond the footprint."""
+    """An upper bound (mm) of the sweep's lower surface over a rectangle inside its footprint (a
+    line's: its maximum there); inf where none is known (module docstring)."""
     if S[0] != 0.0:
-        return math.inf
+        return _arc_ceiling(S, P, R, x0, y0, x1, y1)
     top = -math.inf
     for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
         if point_segment_distance(cx, cy, S[1], S[2], S[4], S[5]) > R:

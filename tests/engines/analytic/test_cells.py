@@ -22,7 +22,7 @@ def _points(rect, n=9):
     return [(x, y) for x in np.linspace(x0, x1, n) for y in np.linspace(y0, y1, n)]
 
 
-def _check(row, lp, rect):
+def _check(row, lp, rect, attained=True):
     floor = cell_floor(row, lp.pieces, lp.radius, *rect, 0.0)
     ceiling = cell_ceiling(row, lp.pieces, lp.radius, *rect)
     values = [sweep_lower(row, lp.pieces, lp.radius, x, y, 0.0) for x, y in _points(rect)]
@@ -32,7 +32,9 @@ def _check(row, lp, rect):
     if math.isfinite(ceiling):
         assert all(math.isfinite(v) for v in values)  # the whole rectangle lies in the footprint
         assert max(values) <= ceiling + 1e-12
-        assert max(values) >= ceiling - 1e-12  # attained at a corner
+        if attained:
+            assert max(values) >= ceiling - 1e-12  # a line's: attained at a corner
+    return floor, ceiling
 
 
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -46,13 +48,31 @@ def test_line_sweep_floor_and_ceiling_bound_it_over_a_cell(kind, a, b, c, size):
 @given(kind=st.sampled_from(sorted(TOOLS)), c=st.tuples(coord, coord), rho=st.floats(0.2, 8),
        a0=st.floats(-4, 4), sw=st.floats(-13, 13).filter(lambda v: abs(v) > 1e-3), z=st.tuples(coord, coord),
        q=st.tuples(coord, coord), size=st.tuples(st.floats(0.01, 6), st.floats(0.01, 6)))
-def test_arc_sweep_floor_bounds_it_over_a_cell(kind, c, rho, a0, sw, z, q, size):
+def test_arc_sweep_floor_and_ceiling_bound_it_over_a_cell(kind, c, rho, a0, sw, z, q, size):
     start = (c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z[0])
     end = (c[0] + rho * math.cos(a0 + sw), c[1] + rho * math.sin(a0 + sw), z[1])
     row = arc_row(start, end, c, rho, a0, sw, 0)
     rect = (q[0], q[1], q[0] + size[0], q[1] + size[1])
-    _check(row, lower_profile(TOOLS[kind]), rect)
-    assert math.isinf(cell_ceiling(row, lower_profile(TOOLS[kind]).pieces, 3.0, *rect))  # arcs: no ceiling
+    _check(row, lower_profile(TOOLS[kind]), rect, attained=False)
+
+
+@pytest.mark.parametrize("kind", ["flat", "ball", "bullnose"])
+def test_a_helix_turn_over_a_small_cell_is_bounded_by_its_nearby_part(kind):
+    """Over a 0.1 mm cell under a helix of several turns the floor is the lowest turn's nearby tip
+    (not the helix's lowest tip), and the ceiling the tool's height there: the turns above it are
+    then ruled out for the cell."""
+    lp = lower_profile(TOOLS[kind])
+    c, rho, turns, pitch = (0.0, 0.0), 8.0, 3, 1.0
+    sw = 2 * math.pi * turns
+    row = arc_row((rho, 0.0, 0.0), (rho, 0.0, -pitch * turns), c, rho, 0.0, sw, 0)
+    rect = (-0.05, rho - 0.05, 0.05, rho + 0.05)  # under the path at a quarter turn
+    floor, ceiling = _check(row, lp, rect, attained=False)
+    # the path passes over the cell's centre at 1/4, 5/4 and 9/4 turns, lowest at 9/4 (z = -2.25);
+    # the floor takes the tips within the tool's reach of the cell about it (the helix's own
+    # lowest tip is -3), the ceiling the tool there (its corners 0.0707 mm off the axis)
+    reach = math.asin((lp.radius + 0.0708) / rho) if lp.radius + 0.0708 < rho else math.pi
+    assert -2.25 - pitch * reach / (2 * math.pi) - 1e-9 <= floor < -2.25
+    assert ceiling <= -2.25 + lp.f(0.0708) + 1e-9
 
 
 def test_a_pass_retraced_lower_lies_under_the_first():
