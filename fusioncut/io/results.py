@@ -607,7 +607,10 @@ def _read_table(directory: Path, name: str, columns: tuple[Column, ...],
                 filled: set[str]) -> tuple[pd.DataFrame, dict, str]:
     pq_path, csv_path = directory / f"{name}.parquet", directory / f"{name}.csv"
     if pq_path.exists():
-        table = pq.read_table(pq_path)
+        # one open file for every read: pyarrow given the path opens it again for the pages, and a
+        # writer's os.replace between the opens hands it another file than its footer describes
+        with open(pq_path, "rb") as f:
+            table = pq.read_table(f)
         raw = (table.schema.metadata or {}).get(METADATA_KEY)
         df = _with_later_columns(table.to_pandas(), columns, pq_path, filled)
         return _coerce(df, columns), (json.loads(raw) if raw else {}), "parquet"

@@ -218,6 +218,30 @@ def test_writer_flushes_in_batches(tmp_path):
         w.add(ems[0])
 
 
+def test_a_load_reads_one_whole_file_while_a_writer_replaces_it(tmp_path, monkeypatch):
+    """A running job's tables are replaced at every flush (os.replace) while the service reads them:
+    a load reads the file it opened to the end, even when it is replaced mid-read (pyarrow given the
+    path opened it again for the pages and met the new file: "Page was smaller than expected")."""
+    ems = program()
+    w = ResultWriter(tmp_path, batch_size=2, max_io_fraction=None)
+    for em in ems[:2]:
+        w.add(em)
+    later = tmp_path / "later"
+    with ResultWriter(later, max_io_fraction=None) as w2:
+        for em in ems:
+            w2.add(em)
+    real = res.pq.read_table
+
+    def replaced_mid_read(source, *a, **k):
+        for name in ("cl.parquet", "slices.parquet"):
+            if (later / name).exists():
+                os.replace(later / name, tmp_path / name)  # the writer's next flush lands now
+        return real(source, *a, **k)
+
+    monkeypatch.setattr(res.pq, "read_table", replaced_mid_read)
+    assert load_results(tmp_path).cl["cl"].tolist() == [0, 1]  # the file as it was opened
+
+
 def test_unclosed_writer_leaves_consistent_files(tmp_path):
     # the process "dies" without close(): every completed batch is on disk, CSV and Parquet agree,
     # and every CL in the cl table has its slices
