@@ -70,6 +70,12 @@ def arc_row(start, end, center, rho: float, a0: float, sw: float, tool: int) -> 
     return row
 
 
+@njit(cache=True)
+def is_ball(P, R):
+    """Whether the lower profile ``P`` (radius ``R``) is a ball's: one arc of radius R about (0, R)."""
+    return P.shape[0] == 1 and P[0, 0] == ARC and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R
+
+
 # -- lines ---------------------------------------------------------------------------------------
 @njit(cache=True)
 def _line_slope(S, P, R, px, py, t):
@@ -122,7 +128,7 @@ def line_lower(S, P, R, px, py, eps):
         return _line_value(S, P, R, px, py, lo)
     if _line_slope(S, P, R, px, py, hi) <= 0.0:
         return _line_value(S, P, R, px, py, hi)
-    if P.shape[0] == 1 and P[0, 0] == 1.0 and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R:
+    if is_ball(P, R):
         # a ball: the minimum inside (lo, hi) lies on the swept sphere's envelope, the cylinder of
         # radius R about the centres' line, whose lowest point above p is below the centre over p's
         # foot on the path by W sqrt(1 + uz^2 / uu), W^2 = R^2 - (p's XY distance from the path)^2,
@@ -368,8 +374,7 @@ def arc_lower(S, P, R, px, py, eps):
     flat = P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0  # a flat end mill's f: constant
     # convex: the value is convex over each window's part within R, of half-width wr (-1: none, only
     # the eps margin), which spans no more than cos(u) >= limit (module docstring)
-    ball = P.shape[0] == 1 and P[0, 0] == 1.0 and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R
-    limit = 0.0 if ball else min(rho, Q) / max(rho, Q)
+    limit = 0.0 if is_ball(P, R) else min(rho, Q) / max(rho, Q)
     kr = (rho * rho + Q * Q - R * R) / (2.0 * rho * Q)
     convex = kr >= limit
     wr = math.acos(kr) if limit <= kr <= 1.0 else -1.0
