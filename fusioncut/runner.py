@@ -24,7 +24,7 @@ checkpoint of a parallel run resumes single-process and the other way round. The
 CLs in batches, so there Ctrl-C stops once the batch in progress is done.
 
 The engine option ``engine="analytic"`` runs :class:`~fusioncut.engines.analytic.engine.AnalyticEngine`
-(exact sweeps, no Booleans) instead: box stocks and tools of revolution only, checked before anything
+(exact sweeps, no Booleans) instead: box stocks, round bars and tools of revolution only, checked before anything
 is written; with ``workers`` or ``scheduler`` its CLs are computed in chunks on Dask workers
 (:mod:`fusioncut.engines.analytic.parallel`, the same rows); it keeps no B-Rep workpiece, so the
 IPW export and snapshots are STL only, a mesh of its exact height map (one warning says so; no
@@ -59,8 +59,8 @@ from fusioncut.io import tool_sources
 from fusioncut.io.job import RUN_OPTIONS, Job, build_stock, job_hash, read_toolpath
 from fusioncut.io.mesh import write_stl
 from fusioncut.io.results import ResultWriter, load_results
-from fusioncut.model import (ArcMove, ArcPlane, BoxStock, CLStatus, EngagementMap, MillingTool, Move, Stock,
-                             Toolpath)
+from fusioncut.model import (ArcMove, ArcPlane, BoxStock, CLStatus, CylinderStock, EngagementMap, MillingTool, Move,
+                             Stock, Toolpath)
 
 log = logging.getLogger("fusioncut.run")
 
@@ -296,7 +296,7 @@ def run_toolpath(toolpath: Toolpath, stock: Stock, out_dir: Path, options: Engin
 def resolve_engine(options: EngineOptions, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None,
                    wants_ipw: bool = False) -> EngineOptions:
     """``options`` with ``engine="auto"`` resolved, before anything is written: ``analytic`` when the
-    analytic engine applies to the whole run (a box stock, every tool passing
+    analytic engine applies to the whole run (a box stock or a round bar, every tool passing
     :meth:`AnalyticEngine.check_tools`, exact sweeps, and no B-Rep workpiece wanted: ``wants_ipw``,
     an IPW export or snapshot asked), else ``brep``; one INFO line of the log says which and why
     (naming the tool or the stock). Options asking for an engine by name are returned as given."""
@@ -306,7 +306,7 @@ def resolve_engine(options: EngineOptions, toolpath: Toolpath, stock: Stock, def
     if why:
         log.info("engine auto: the B-Rep engine runs this job, as %s", why)
         return replace(options, engine=EngineKind.BREP)
-    log.info("engine auto: the analytic engine runs this job (a box stock, tools of revolution without undercut, "
+    log.info("engine auto: the analytic engine runs this job (a box or round bar stock, tools of revolution without undercut, "
              "exact sweeps, no IPW export or snapshot asked)")
     return replace(options, engine=EngineKind.ANALYTIC)
 
@@ -314,8 +314,8 @@ def resolve_engine(options: EngineOptions, toolpath: Toolpath, stock: Stock, def
 def _why_not_analytic(options: EngineOptions, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None,
                       wants_ipw: bool) -> str:
     """Why the analytic engine does not apply to a run ('' when it does)."""
-    if not isinstance(stock, BoxStock):
-        return f"the analytic engine needs a box stock and the stock is a {type(stock).__name__}"
+    if not isinstance(stock, (BoxStock, CylinderStock)):
+        return f"the analytic engine needs a box stock or a round bar and the stock is a {type(stock).__name__}"
     if not options.exact:
         return f"sweep {options.sweep.value!r} is asked (the analytic engine sweeps exactly)"
     try:

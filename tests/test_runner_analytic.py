@@ -20,6 +20,7 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.io.job import Job, Options, StockSpec, ToolSpec, job_hash, load_job
 from fusioncut.io.mesh import mesh_volume, read_stl
 from fusioncut.io.results import load_results
+from fusioncut.model import BoxStock
 from fusioncut.runner import prepare_job, run_job
 
 # A flat end mill slot 2 mm deep (entering from outside the stock) and a ball-end ramp (1:2, swept along its path).
@@ -151,18 +152,39 @@ def test_an_unknown_engine_is_refused_naming_the_flag(tmp_path):
         EngineOptions(engine="parallel-brep")
 
 
-def test_a_cylinder_stock_is_refused_before_anything_is_written(tmp_path):
+def test_a_solid_stock_is_refused_before_anything_is_written(tmp_path):
     path = job_file(tmp_path)
+    (tmp_path / "blank.step").write_text("")  # refused by kind: the file is never read
     data = json.loads(path.read_text())
-    data["stock"] = {"kind": "cylinder", "base_center": [15, 10, -10], "radius": 15, "height": 10}
+    data["stock"] = {"kind": "file", "path": "blank.step"}
     path.write_text(json.dumps(data))
     job, base = load_job(path)
     out = tmp_path / "out"
-    with pytest.raises(UnsupportedStock, match="box stock, got CylinderStock"):
+    with pytest.raises(UnsupportedStock, match="box stock or a round bar, got SolidStock"):
         run_job(job, base, out)
     assert not (out / "cl.parquet").exists()
     res = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "cli")])
-    assert res.exit_code != 0 and "box stock" in res.output and "Traceback" not in res.output
+    assert res.exit_code != 0 and "round bar" in res.output and "Traceback" not in res.output
+
+
+def test_a_round_bar_runs_on_the_analytic_engine_and_adds_up(tmp_path, caplog):
+    """engine 'auto' with a cylinder stock: the analytic engine runs it, the bar's volume less the
+    removed total is the workpiece's, and 2 workers give the same tables bit for bit (they start from
+    the bar, not its box)."""
+    job, base = auto_job(tmp_path, stock={"kind": "cylinder", "base_center": [15, 10, -10], "radius": 18,
+                                          "height": 10})
+    with caplog.at_level(logging.INFO, logger="fusioncut.run"):
+        r = run_job(job, base, tmp_path / "out", export_ipw=False)
+    assert "engine auto: the analytic engine runs this job" in caplog.text
+    res = load_results(tmp_path / "out")
+    assert set(res.cl["engine"]) == {"analytic"} and (res.cl["status"] == "engaged").any()
+    assert r.conservation_error < 1e-9
+    parallel = job.model_copy(update={"options": job.options.model_copy(update={"workers": 2})})
+    par = run_job(parallel, base, tmp_path / "par", export_ipw=False)
+    assert par.removed_volume == r.removed_volume
+    (cl_a, sl_a), (cl_b, sl_b) = tables(tmp_path / "out"), tables(tmp_path / "par")
+    pd.testing.assert_frame_equal(cl_a, cl_b, check_exact=True)
+    pd.testing.assert_frame_equal(sl_a, sl_b, check_exact=True)
 
 
 def test_a_parallel_analytic_run_equals_one_process_and_resumes_across_them(tmp_path, caplog):
@@ -250,7 +272,7 @@ def test_auto_is_the_default_and_runs_the_analytic_engine_where_it_applies(tmp_p
 
 @pytest.mark.parametrize("case, why", [
     ("export", "an IPW export or snapshot is asked"),
-    ("cylinder", "needs a box stock and the stock is a CylinderStock"),
+    ("solid", "needs a box stock or a round bar and the stock is a SolidStock"),
     ("sampled", "sweep 'sampled' is asked"),
     ("tool", "cannot sweep a tool: tool T2: its lower profile is not convex"),
     ("2.5D", "every cut is a level or vertical move of a flat end mill"),
@@ -258,8 +280,12 @@ def test_auto_is_the_default_and_runs_the_analytic_engine_where_it_applies(tmp_p
 def test_auto_runs_the_brep_engine_where_the_analytic_one_does_not_apply_and_says_why(tmp_path, caplog, monkeypatch,
                                                                                       case, why):
     changes: dict = {}
-    if case == "cylinder":
-        changes["stock"] = {"kind": "cylinder", "base_center": [15, 10, -10], "radius": 18, "height": 10}
+    if case == "solid":
+        from fusioncut.engines.brep.occ import write_step
+        from fusioncut.engines.brep.stock import stock_solid
+
+        write_step(stock_solid(BoxStock((0, -5, -10), (30, 25, 0))), str(tmp_path / "blank.step"))
+        changes["stock"] = {"kind": "file", "path": "blank.step"}
     job, base = auto_job(tmp_path, **changes)
     if case == "sampled":
         job = job.model_copy(update={"options": job.options.model_copy(update={"sweep": "sampled"})})

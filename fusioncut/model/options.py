@@ -118,9 +118,10 @@ class EngineOptions:
         "before it; None runs them in this process, unbounded and deaf to Ctrl-C."))
     engine: EngineKind = _option(EngineKind.AUTO, (
         "Which engine computes the engagement: 'brep' (OCCT Booleans on the B-Rep IPW), 'analytic' "
-        "(exact sweeps, no Booleans; box stock and tools of revolution only; the IPW as an STL of its "
-        "height map only) or 'auto': analytic where it applies to the whole run (box stock, every tool, "
-        "exact sweeps, no IPW export or snapshot asked), else brep; the log says which and why."))
+        "(exact sweeps, no Booleans; box or cylinder stock and tools of revolution only; the IPW as an STL "
+        "of its height map only) or 'auto': analytic where it applies to the whole run (box or cylinder "
+        "stock, every tool, exact sweeps, no IPW export or snapshot asked), else brep; the log says which "
+        "and why."))
 
     def __post_init__(self) -> None:
         self._choose("sweep", SweepMethod, SWEEP_CHOICES)

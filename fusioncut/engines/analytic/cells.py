@@ -16,6 +16,9 @@ that can be the least lower surface ``h`` somewhere in it. Two closed-form bound
   ``z(t) + f(the farthest corner's distance)``, an upper bound (the lower surface is at most any
   one position's, and the distance to a point is largest at a corner); inf where none holds it.
 
+A stock's outside (:func:`.sweeps.outside_row`) has both in closed form: its height ``z0`` where the
+cell reaches beyond its circle (floor) or lies wholly beyond it (ceiling), else inf.
+
 With ``U`` the least of the stock's top and the ceilings, ``h`` (capped by the top) is at most ``U``
 all over the cell: a sweep whose floor is at least ``U`` never lowers it and is left out (the sweep
 that gives ``U`` is kept). Where the CL's own floor over the cell reaches ``U``, nothing is removed
@@ -33,7 +36,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import point_segment_distance, sweep_lower
+from fusioncut.engines.analytic.sweeps import OUTSIDE, point_segment_distance, sweep_lower
 
 
 @njit(cache=True)
@@ -41,6 +44,14 @@ def _point_distance(x0, y0, x1, y1, px, py):
     """XY distance (mm) from (px, py) to the rectangle (0 inside it)."""
     dx = max(x0 - px, 0.0, px - x1)
     dy = max(y0 - py, 0.0, py - y1)
+    return math.sqrt(dx * dx + dy * dy)
+
+
+@njit(cache=True)
+def _farthest_corner(x0, y0, x1, y1, px, py):
+    """XY distance (mm) from (px, py) to the rectangle's farthest corner."""
+    dx = max(px - x0, x1 - px)
+    dy = max(py - y0, y1 - py)
     return math.sqrt(dx * dx + dy * dy)
 
 
@@ -79,9 +90,7 @@ def path_distance(S, x0, y0, x1, y1):
         return d
     cx, cy, rho = S[7], S[8], S[9]
     near = _point_distance(x0, y0, x1, y1, cx, cy)
-    far = 0.0
-    for qx, qy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
-        far = max(far, math.sqrt((qx - cx) ** 2 + (qy - cy) ** 2))
+    far = _farthest_corner(x0, y0, x1, y1, cx, cy)
     if rho < near:
         return near - rho
     if rho > far:
@@ -120,6 +129,8 @@ def _arc_low_tip(S, x0, y0, x1, y1, reach):
 def cell_floor(S, P, R, x0, y0, x1, y1, eps):
     """A lower bound (mm) of the sweep's lower surface over the rectangle; inf beyond its footprint
     widened by ``eps``."""
+    if S[0] == OUTSIDE:
+        return S[3] if _farthest_corner(x0, y0, x1, y1, S[7], S[8]) >= S[9] - eps else math.inf
     d = path_distance(S, x0, y0, x1, y1)
     if d > R + eps:
         return math.inf
@@ -159,6 +170,8 @@ def _arc_ceiling(S, P, R, x0, y0, x1, y1):
 def cell_ceiling(S, P, R, x0, y0, x1, y1):
     """An upper bound (mm) of the sweep's lower surface over a rectangle inside its footprint (a
     line's: its maximum there); inf where none is known (module docstring)."""
+    if S[0] == OUTSIDE:
+        return S[3] if _point_distance(x0, y0, x1, y1, S[7], S[8]) >= S[9] else math.inf
     if S[0] != 0.0:
         return _arc_ceiling(S, P, R, x0, y0, x1, y1)
     top = -math.inf

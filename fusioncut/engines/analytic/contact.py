@@ -4,9 +4,10 @@ Machine frame, mm, radians. The tool stands at the end ``e`` of the CL's sweep `
 ``zs`` mm above the tip is the circle of radius ``r = rho(zs)`` about the axis. The point ``q(theta) =
 e + r (cos theta, sin theta)`` at height ``e_z + zs`` is **engaged** when both hold:
 
-* **material**: it lies strictly inside the box stock and above no earlier sweep's
+* **material**: it lies strictly inside the stock's box and above no earlier sweep's
   lower surface (:func:`fusioncut.engines.analytic.sweeps.sweep_lower` with the footprint widened
-  by ``eps``, lower surface + ``eps`` <= its height: cut). So a wall an earlier pass left exactly
+  by ``eps``, lower surface + ``eps`` <= its height: cut; a round bar's outside is such a sweep,
+  :func:`fusioncut.engines.analytic.sweeps.outside_row`). So a wall an earlier pass left exactly
   where the tool now stands (a deeper pass retracing it) holds no material: no interval, as in the
   B-Rep engine's zero-thickness rule.
 * **front**: it lies on the boundary of the CL's own sweep, not strictly inside the tool at an
@@ -37,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.cells import relevant_sweeps
-from fusioncut.engines.analytic.sweeps import arc_depth, end_velocity, sweep_floor, sweep_lower
+from fusioncut.engines.analytic.sweeps import OUTSIDE, arc_depth, end_velocity, sweep_floor, sweep_lower
 
 N_SCAN = 720
 ANGLE_TOL = 1e-10  # rad
@@ -298,7 +299,8 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
 @njit(cache=True)
 def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
     """How deep (mm) the point lies in the material before the CL: the least distance to a stock
-    face and height below an earlier sweep's lower surface (less ``eps``); <= 0 where there is none.
+    face, height below an earlier sweep's lower surface and distance inside a round bar's side (less
+    ``eps``); <= 0 where there is none.
     Only the sweeps of the point's grid cell are looked at (:func:`sweep_grid`)."""
     m = min(px - stock[0], stock[3] - px, py - stock[1], stock[4] - py, pz - stock[2], stock[5] - pz)
     first, end = _cell(px, py, G, gstart)
@@ -307,6 +309,9 @@ def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitem
         if m <= 0.0:
             return m
         if px < CB[j, 0] - eps or px > CB[j, 2] + eps or py < CB[j, 1] - eps or py > CB[j, 3] + eps:
+            continue
+        if C[j, 0] == OUTSIDE:  # a round bar's side: the distance to it
+            m = min(m, C[j, 9] - eps - math.hypot(px - C[j, 7], py - C[j, 8]))
             continue
         if C[j, 3] - eps - pz >= m and C[j, 6] - eps - pz >= m:
             continue  # its lower surface is nowhere below its path's lowest tip

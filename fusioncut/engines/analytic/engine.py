@@ -1,9 +1,11 @@
 """The analytic engagement engine: exact 3-axis engagement from the toolpath, no Booleans (issue 26).
 
-For tools of revolution without undercut moved in 3 axes over a box stock, the in-process
-workpiece before CL k is ``stock ∩ {z <= h_k(x, y)}`` with ``h_k`` the lowest lower surface of
-the sweeps of CLs 0..k-1 (:mod:`.sweeps`; the tool extends straight up, as a 3-axis tool's shank
-and holder do). Nothing is built or kept but the sweeps themselves (one row each, :mod:`.index`):
+For tools of revolution without undercut moved in 3 axes over a box stock or a round bar along z,
+the in-process workpiece before CL k is ``stock ∩ {z <= h_k(x, y)}`` with ``h_k`` the lowest lower
+surface of the sweeps of CLs 0..k-1 (:mod:`.sweeps`; the tool extends straight up, as a 3-axis
+tool's shank and holder do). A round bar is its box less its outside, which is indexed as the
+first sweep (:func:`.sweeps.outside_row`), so that every stage meets the bar's side as an earlier
+wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.index`):
 
 * the **removed volume** of CL k integrates ``min(h_k, top) - max(L_k, bottom)`` over its
   footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint or ``volume_rel`` of the
@@ -41,7 +43,7 @@ indices match; a piece of a ramp or helix is swept along the programmed path its
 B-Rep engine's level step. A neck or shank wider than the flutes is one more sweep per CL, of a
 flat-bottomed part of the tool (:func:`.profile.upper_parts`, :meth:`AnalyticEngine.part_sweeps`):
 its removed volume is what it takes beyond the CL's lower parts, its contact is shank contact. Not
-yet here: stocks other than a box.
+here: a stock read from a solid (STEP, BREP).
 """
 from __future__ import annotations
 
@@ -63,14 +65,14 @@ from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, i
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                profile_radius, profile_radius_slope, upper_parts)
-from fusioncut.engines.analytic.sweeps import NCOL, arc_row, line_row
+from fusioncut.engines.analytic.sweeps import NCOL, OUTSIDE, arc_row, line_row, outside_row
 from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.moves import ArcMove, ArcPlane, Move, Toolpath
-from fusioncut.model.stock import BoxStock, Stock
+from fusioncut.model.stock import BoxStock, CylinderStock, Stock
 from fusioncut.model.tools import MillingTool
 
 WALL_EPS = 1e-10  # mm: a point this close to an earlier sweep's surface counts as cut (zero-thickness walls)
@@ -103,7 +105,7 @@ class PartSweep:
 
 
 class UnsupportedStock(InputError):
-    """A stock the analytic engine cannot take (it needs a box)."""
+    """A stock the analytic engine cannot take (it needs a box or a round bar along z)."""
 
 
 class CheckpointMismatch(InputError):
@@ -112,7 +114,7 @@ class CheckpointMismatch(InputError):
 
 @dataclass
 class AnalyticEngine:
-    """Exact Boolean-free engine for 3-axis tools of revolution over a box stock.
+    """Exact Boolean-free engine for 3-axis tools of revolution over a box stock or a round bar.
 
     ``bin_size`` (mm): the sweep index's grid (None: twice the first tool's diameter).
     ``volume_tol`` (mm) and ``volume_rel``: the removed volume's integration tolerance, per mm² of
@@ -125,7 +127,8 @@ class AnalyticEngine:
     bin_size: float | None = None
     volume_tol: float = 1e-10
     volume_rel: float = 1e-8
-    stock: tuple[float, ...] = ()
+    stock: tuple[float, ...] = ()  # the stock's box: x0, y0, z0, x1, y1, z1 (mm)
+    round_bar: tuple[float, ...] = ()  # a round bar's axis and radius in that box: cx, cy, r (mm); () for a box
     removed_total: float = 0.0
     _index: SweepIndex | None = field(default=None, init=False, repr=False)
     _tools: ProfileTable = field(default_factory=ProfileTable, init=False, repr=False)
@@ -145,13 +148,26 @@ class AnalyticEngine:
         """Nothing is held outside this process."""
 
     def start(self, stock: Stock) -> None:
-        if not isinstance(stock, BoxStock):
-            raise UnsupportedStock(f"the analytic engine needs a box stock, got {type(stock).__name__} "
+        if isinstance(stock, BoxStock):
+            self._reset((*stock.minimum, *stock.maximum), 0.0)
+        elif isinstance(stock, CylinderStock):
+            (cx, cy, z0), r = stock.base_center, stock.radius
+            self._reset((cx - r, cy - r, z0, cx + r, cy + r, z0 + stock.height), 0.0, (cx, cy, r))
+        else:
+            raise UnsupportedStock(f"the analytic engine needs a box stock or a round bar, got {type(stock).__name__} "
                                    "(choose the brep engine for it)")
-        self._reset((*stock.minimum, *stock.maximum), 0.0)
 
-    def _reset(self, stock: tuple[float, ...], removed_total: float) -> None:
+    def stock_model(self) -> Stock:
+        """The stock this engine was started with (or its checkpoint holds)."""
+        s = self.stock
+        if self.round_bar:
+            cx, cy, r = self.round_bar
+            return CylinderStock((cx, cy, s[2]), r, s[5] - s[2])
+        return BoxStock(s[:3], s[3:])
+
+    def _reset(self, stock: tuple[float, ...], removed_total: float, round_bar: tuple[float, ...] = ()) -> None:
         self.stock = tuple(float(v) for v in stock)
+        self.round_bar = tuple(float(v) for v in round_bar)
         self.removed_total = removed_total
         self._index = SweepIndex(self.bin_size) if self.bin_size else None
         self._tools = ProfileTable()
@@ -185,6 +201,9 @@ class AnalyticEngine:
         boxes = self._index.boxes[:n] if self._index else np.zeros((0, 4))
         t = self._tools
         Z = height_map(rows, boxes, t.profiles, t.counts, t.radii, xs, ys, s[2], s[5])
+        if self.round_bar:  # the bar's outside (also before its row is indexed at the first CL)
+            cx, cy, r = self.round_bar
+            Z[np.hypot(*np.meshgrid(xs - cx, ys - cy)) >= r] = s[2]
         return ipw_mesh(xs, ys, Z, s[2])
 
     def _sweeps(self) -> np.ndarray:
@@ -198,8 +217,8 @@ class AnalyticEngine:
         folder.mkdir(parents=True, exist_ok=True)
         tmp = folder / (SWEEPS + ".tmp")
         with open(tmp, "wb") as f:
-            np.savez(f, stock=np.array(self.stock), removed_total=np.array(self.removed_total),
-                     next_cl=np.array(next_cl), sweeps=self._sweeps())
+            np.savez(f, stock=np.array(self.stock), round_bar=np.array(self.round_bar, dtype=np.float64),
+                     removed_total=np.array(self.removed_total), next_cl=np.array(next_cl), sweeps=self._sweeps())
         os.replace(tmp, folder / SWEEPS)
         tmp = folder / (STATE + ".tmp")
         tmp.write_text(json.dumps({"engine": self.kind.value, "next_cl": next_cl, "state": SWEEPS}))
@@ -212,17 +231,20 @@ class AnalyticEngine:
             with np.load(Path(folder) / SWEEPS, allow_pickle=False) as saved:
                 stock, removed = tuple(saved["stock"]), float(saved["removed_total"])
                 next_cl, sweeps = int(saved["next_cl"]), saved["sweeps"]
+                round_bar = tuple(saved["round_bar"]) if "round_bar" in saved.files else ()
         except (OSError, ValueError, KeyError):
             return None
-        if len(stock) != 6:
+        if len(stock) != 6 or len(round_bar) not in (0, 3):
             return None
-        self._reset(stock, removed)
+        self._reset(stock, removed, round_bar)
         self._saved_sweeps = sweeps
         return next_cl
 
     @property
     def stock_volume(self) -> float:
         s = self.stock
+        if self.round_bar:
+            return math.pi * self.round_bar[2] ** 2 * (s[5] - s[2])
         return (s[3] - s[0]) * (s[4] - s[1]) * (s[5] - s[2])
 
     def run(self, toolpath: Toolpath, stock: Stock, default_tool: MillingTool | None = None) -> Iterator[EngagementMap]:
@@ -269,6 +291,11 @@ class AnalyticEngine:
     def _index_of(self, profile: LowerProfile) -> SweepIndex:
         if self._index is None:
             self._index = SweepIndex(4 * profile.radius)
+        if self._index.size == 0 and self.round_bar:
+            # the bar's outside, cut before the first CL: 1 mm below its bottom, over its whole box
+            s, (cx, cy, r) = self.stock, self.round_bar
+            self._index.add(outside_row((cx, cy), r, s[2] - 1.0, self._tools.index_of(profile)),
+                            (s[0], s[1], s[3], s[4]), s[2] - 1.0)
         return self._index
 
     def step(self, cl: CL) -> EngagementMap:
@@ -319,7 +346,7 @@ class AnalyticEngine:
         except Exception as exc:  # noqa: BLE001 - no sweep to index: this CL fails, the run goes on
             return EngagementMap(**cl_base(cl), status=CLStatus.FAILED, engine=EngineKind.ANALYTIC.value,
                                  reason=f"analytic engine: {why}; its sweep cannot be built: {exc}")
-        m = brep_fallback(cl, _union(p.box for p in parts), self._done, self.stock, self.options, why)
+        m = brep_fallback(cl, _union(p.box for p in parts), self._done, self.stock_model(), self.options, why)
         self._take(cl, parts)
         self.removed_total += m.removed_volume
         return m
@@ -535,8 +562,8 @@ def _area_breaks(shaping: np.ndarray, PP: np.ndarray, NPC: np.ndarray, top: floa
     :func:`.area.contact_area` finds as such)."""
     out = {top}
     for r in shaping:
-        if r[3] != r[6]:
-            continue  # a ramp or helix: its profile's heights vary along it
+        if r[3] != r[6] or r[0] == OUTSIDE:
+            continue  # a ramp or helix: its profile's heights vary along it; a bar's side is vertical
         k = int(r[12])
         pieces = PP[k, :NPC[k]]
         out.update(float(r[3] + profile_height(pieces, d) - ez) for d in (0.0, *pieces[:, 2]))
@@ -555,7 +582,10 @@ def tiles(x0: float, y0: float, x1: float, y1: float, size: float) -> list[tuple
 def _break_radii(row: np.ndarray, pieces: np.ndarray, levels: tuple[float, float]) -> tuple[float, ...]:
     """Radii (mm) about a sweep's path where its lower surface jumps or bends: R and the profile's
     corners (:func:`.profile.corner_radii`); for a level sweep also where it crosses the heights
-    ``levels`` (the stock's bottom and top), where the removed height bends."""
+    ``levels`` (the stock's bottom and top), where the removed height bends. None for a stock's
+    outside (:func:`.volume.boundary_curves` takes its circle)."""
+    if row[0] == OUTSIDE:
+        return ()
     out = list(corner_radii(pieces))
     if row[3] == row[6]:
         for level in levels:

@@ -3,7 +3,8 @@
 The workpiece before CL k is the stock less the sweeps of CLs 0..k-1 (:mod:`.engine`), so the
 material a CL can touch is known without the rest of the run: :func:`brep_fallback` builds it
 with the B-Rep engine (:class:`~fusioncut.engines.brep.engine.BRepEngine`, which alone builds
-B-Rep solids) on the stock box cropped to the CL's sweep footprint grown by :data:`MARGIN` mm,
+B-Rep solids) on the stock box cropped to the CL's sweep footprint grown by :data:`MARGIN` mm (a
+round bar whole: a stock model holds no cropped bar; the earlier CLs cut are still only the near ones),
 cutting into it, in program order, the earlier CLs whose footprints meet that box, and then steps
 the CL itself. Its map is the B-Rep engine's (``engine="brep"``, with a warning naming the
 analytic engine's error), so it agrees with an all-B-Rep run to the Booleans' fuzzy values: the
@@ -26,7 +27,7 @@ from dataclasses import replace
 from fusioncut.engines.base import EngineKind, EngineOptions
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, engagement_map
 from fusioncut.model.engagement import CLStatus, EngagementMap
-from fusioncut.model.stock import BoxStock
+from fusioncut.model.stock import BoxStock, CylinderStock, Stock
 
 log = logging.getLogger("fusioncut.analytic")
 
@@ -35,12 +36,17 @@ MARGIN = 1.0  # mm around the CL's footprint: the local workpiece's walls stay c
 Box = tuple[float, float, float, float]  # (x0, y0, x1, y1), mm
 
 
-def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock: Sequence[float],
+def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock_model: Stock,
                   options: EngineOptions, why: str) -> EngagementMap:
     """The map of CL ``cl`` (footprint ``box``) by the B-Rep engine on a local workpiece: the
-    ``stock`` box (x0, y0, z0, x1, y1, z1, mm) cropped to ``box`` grown by :data:`MARGIN`, less the
-    sweeps of ``earlier`` (the CLs before ``cl`` with their footprints, in program order) that meet
-    it. ``why``: the analytic engine's error, named in the map's warning or FAILED reason."""
+    stock (a box or a round bar) cropped to ``box`` grown by :data:`MARGIN` (a bar: not cropped), less
+    the sweeps of ``earlier`` (the CLs before ``cl`` with their footprints, in program order) that
+    meet that box. ``why``: the analytic engine's error, named in the map's warning or FAILED reason."""
+    if isinstance(stock_model, CylinderStock):
+        (cx, cy, z0), r = stock_model.base_center, stock_model.radius
+        stock = (cx - r, cy - r, z0, cx + r, cy + r, z0 + stock_model.height)
+    else:
+        stock = (*stock_model.minimum, *stock_model.maximum)
     x0, y0 = max(box[0] - MARGIN, stock[0]), max(box[1] - MARGIN, stock[1])
     x1, y1 = min(box[2] + MARGIN, stock[3]), min(box[3] + MARGIN, stock[4])
     base = cl_base(cl)
@@ -52,7 +58,8 @@ def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock: Se
         from fusioncut.engines.brep.engine import BRepEngine  # the kernel: only for a CL that needs it
 
         engine = BRepEngine(replace(options, engine=EngineKind.BREP))
-        engine.start(BoxStock((x0, y0, stock[2]), (x1, y1, stock[5])))
+        engine.start(stock_model if isinstance(stock_model, CylinderStock)
+                     else BoxStock((x0, y0, stock[2]), (x1, y1, stock[5])))
         last = None
         for e, b in earlier:
             if b[0] > x1 or b[2] < x0 or b[1] > y1 or b[3] < y0 or min(e.move.start[2], e.move.end[2]) >= stock[5]:

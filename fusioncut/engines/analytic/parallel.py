@@ -41,7 +41,7 @@ from fusioncut.engines.cl_maps import CL, cl_sequence
 from fusioncut.engines.dask_cluster import close_quietly, open_client
 from fusioncut.model.engagement import EngagementMap
 from fusioncut.model.moves import Toolpath
-from fusioncut.model.stock import BoxStock, Stock
+from fusioncut.model.stock import Stock
 from fusioncut.model.tools import MillingTool
 
 log = logging.getLogger("fusioncut.parallel")
@@ -185,8 +185,7 @@ class ParallelAnalyticEngine:
         n_workers = max(1, len(client.scheduler_info()["workers"]))
         run = uuid.uuid4().hex
         shared = client.scatter(toolpath, broadcast=True)
-        s = self._local.stock  # the workers start from the run's stock, as the local engine did
-        stock = BoxStock(s[:3], s[3:])
+        stock = self._local.stock_model()  # the workers start from the run's stock, as the local engine did
         # chunks of at most ``chunk`` CLs, and at least 16 per worker, so that the last ones to finish
         # leave a worker idle only briefly
         stop = len(cls) if stop_at is None else min(stop_at, len(cls))

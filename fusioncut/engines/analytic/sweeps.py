@@ -6,6 +6,11 @@ Machine frame, mm, radians. A sweep is one float64 row of :data:`SWEEP_COLUMNS`:
 * ``kind`` 1, an XY arc or helix of radius ``rho`` about ``(cx, cy)``: ``c(t) = (cx + rho cos a(t),
   cy + rho sin a(t), z0 + t (z1 - z0))`` with ``a(t) = a0 + t sw`` (``sw`` signed, > 0
   counter-clockwise); the row's ``x1, y1`` is the arc's end;
+* ``kind`` 2, **the stock's outside**: a round bar stock is its box less what lies outside its
+  circle of radius ``rho`` about ``(cx, cy)``, taken as cut before the first CL: a sweep whose
+  lower surface is ``z0`` (below the stock's bottom) wherever ``|p - (cx, cy)| >= rho - eps`` and
+  inf inside (its wall is the bar's side, as a flat end mill's is its own), so that every reader of
+  the sweeps sees the bar's side as it sees an earlier pass's wall;
 
 ``t`` in [0, 1], ``tool`` the index of the tool's lower profile (:mod:`.profile`) in the engine's
 table. With the lower profile ``f`` (radius ``R``), the sweep removes every point above its
@@ -45,7 +50,7 @@ from fusioncut.engines.analytic.profile import profile_height, profile_radius, p
 
 SWEEP_COLUMNS = ("kind", "x0", "y0", "z0", "x1", "y1", "z1", "cx", "cy", "rho", "a0", "sw", "tool")
 NCOL = len(SWEEP_COLUMNS)
-LINE, ARC = 0.0, 1.0
+LINE, ARC, OUTSIDE = 0.0, 1.0, 2.0
 ARC_STEP = 0.05  # rad: the arc windows' sampling step
 _GOLDEN = 0.6180339887498949
 _BISECTIONS = 64
@@ -68,6 +73,24 @@ def arc_row(start, end, center, rho: float, a0: float, sw: float, tool: int) -> 
     row[0] = ARC
     row[7], row[8], row[9], row[10], row[11] = center[0], center[1], rho, a0, sw
     return row
+
+
+def outside_row(center, radius: float, z: float, tool: int) -> np.ndarray:
+    """The row of the outside of a round bar of ``radius`` about ``center`` (x, y), its lower surface
+    at ``z`` (below the bar's bottom); ``tool`` is any table index (the row's own kernels read none)."""
+    row = line_row((center[0], center[1], z), (center[0], center[1], z), tool)
+    row[0] = OUTSIDE
+    row[7], row[8], row[9] = center[0], center[1], radius
+    return row
+
+
+@njit(cache=True)
+def outside_lower(S, px, py, eps):
+    """The lower surface of a stock's outside (kind 2, module docstring) at ``p``: ``z0`` at or
+    beyond ``rho - eps`` from the centre, inf within."""
+    if math.hypot(px - S[7], py - S[8]) >= S[9] - eps:
+        return S[3]
+    return math.inf
 
 
 @njit(cache=True)
@@ -417,6 +440,8 @@ def arc_depth(S, P, R, px, py, pz):
 def sweep_lower(S, P, R, px, py, eps):
     if S[0] == 0.0:
         return line_lower(S, P, R, px, py, eps)
+    if S[0] == OUTSIDE:
+        return outside_lower(S, px, py, eps)
     return arc_lower(S, P, R, px, py, eps)
 
 
@@ -434,7 +459,9 @@ def sweep_floor(S, P, R, px, py, eps):
     """A lower bound (mm) of :func:`sweep_lower` at ``p``, in closed form: the path's lowest tip
     height plus ``f`` at the least XY distance from ``p`` to the path (``z(t) >= min z`` and ``f``
     grows outward); inf outside the footprint widened by ``eps``. It lets a caller skip a sweep
-    whose lower surface cannot be below a height it already has."""
+    whose lower surface cannot be below a height it already has. A stock's outside's is exact."""
+    if S[0] == OUTSIDE:
+        return outside_lower(S, px, py, eps)
     if S[0] == 0.0:
         d = point_segment_distance(px, py, S[1], S[2], S[4], S[5])
     else:

@@ -1,7 +1,8 @@
 """Volume a CL removes: an adaptive integral over its footprint, no Booleans.
 
 Machine frame, mm. With ``L`` the CL's own sweep's lower surface and ``h`` the lowest lower
-surface of the earlier sweeps near it (the material before the CL is the box stock below ``h``),
+surface of the earlier sweeps near it (the material before the CL is the box stock below ``h``; a
+round bar's outside is one of those sweeps, :func:`.sweeps.outside_row`),
 
     removed = integral over the footprint within the stock's XY box of
               max(0, min(h, z_top) - max(L, z_bottom))  dx dy          (mm³)
@@ -42,8 +43,8 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import (brent_next, brent_start, brent_take, point_segment_distance,
-                                              sweep_floor, sweep_lower)
+from fusioncut.engines.analytic.sweeps import (OUTSIDE, brent_next, brent_start, brent_take,
+                                              point_segment_distance, sweep_floor, sweep_lower)
 
 MIN_PART = 1e-9  # mm
 N_PROBE = 8  # samples a stretch between break points is probed at for kinks
@@ -630,11 +631,14 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
 def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tuple[np.ndarray, np.ndarray]:
     """Circles (cx, cy, r, owner) and segments (x0, y0, x1, y1, owner) where the lower surfaces of
     the sweeps ``rows`` may jump or bend: for each sweep, at each radius of ``radii_of[i]`` (its
-    tool's R and the radii where its profile has a corner); ``owner`` is the sweep's index in
-    ``rows``."""
+    tool's R and the radii where its profile has a corner), for a stock's outside its circle;
+    ``owner`` is the sweep's index in ``rows``."""
     circles: list[tuple[float, ...]] = []
     segments: list[tuple[float, ...]] = []
     for owner, (row, radii) in enumerate(zip(rows, radii_of)):
+        if row[0] == OUTSIDE:
+            circles.append((row[7], row[8], row[9], owner))
+            continue
         x0, y0, x1, y1 = row[1], row[2], row[4], row[5]
         for r in radii:
             circles += [(x0, y0, r, owner), (x1, y1, r, owner)]

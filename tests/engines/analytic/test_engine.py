@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -10,7 +11,7 @@ from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.brep.engine import BRepEngine
 from fusioncut.engines.cl_maps import cl_sequence
 from fusioncut.model import (AptCutter, AptParameters, ArcMove, BallEndMill, BoxStock, BullNoseEndMill, ChamferMill,
-                             CLStatus, CylinderStock, FlatEndMill, LinearMove, SpindleDirection, Toolpath)
+                             CLStatus, FlatEndMill, LinearMove, SolidStock, SpindleDirection, Toolpath)
 
 ANGLE_TOL = 0.001  # degrees (issue 26: 0.001 against the B-Rep engine, 0.005 against closed forms)
 VOLUME_REL = 1e-7
@@ -305,9 +306,9 @@ def test_starting_at_a_later_cl_gives_the_same_maps():
         assert [intervals(s) for s in a.slices] == [intervals(s) for s in b.slices]
 
 
-def test_a_stock_that_is_not_a_box_is_refused_by_name():
-    with pytest.raises(UnsupportedStock, match="box stock"):
-        run([feed((0, 0, 0), (1, 0, 0))], {1: FlatEndMill(6, 10)}, CylinderStock((0, 0, 0), 10, 10))
+def test_a_solid_stock_is_refused_by_name():
+    with pytest.raises(UnsupportedStock, match="box stock or a round bar, got SolidStock"):
+        run([feed((0, 0, 0), (1, 0, 0))], {1: FlatEndMill(6, 10)}, SolidStock(Path("blank.step")))
 
 
 # -- against the B-Rep engine, CL by CL ---------------------------------------------------------------
