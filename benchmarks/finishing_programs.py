@@ -12,18 +12,26 @@ the first row. Waterline: the bowl without the ripple has circular level lines, 
 6); one full circle per level from z = -2.5 down to -7.5 every 0.5 mm, each reached by a helical half
 turn down from the one above. Spiral: an Archimedean spiral from the centre out to r = 14, 1 mm
 apart, points every 0.5 mm of arc, on the rippled surface.
+
+Beside them, a round bar (a cylinder stock of radius 25 mm, 30 mm high, its top at z = 0) under a
+10 mm flat end mill (``gen_round_bar_flat``): the top faced 1 mm deep in rows 7 mm apart across the
+whole bar, the outside taken down from radius 25 to 22, 21 and 20 in three full circles 8 mm deep
+(each reached by a plunge beside the bar and a line in), and a slot 10 mm wide, 3 mm below the faced
+top, across it at y = 2. It removes in all, in closed form, pi 25² 1 + pi (25² - 20²) 7 + 3 (F(7) -
+F(-3)) mm³ with F(y) = y sqrt(20² - y²) + 20² asin(y / 20).
 """
 from __future__ import annotations
 
 import math
 
-from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, LinearMove, MillingTool, Stock,
-                             Toolpath)
+from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CylinderStock, FlatEndMill,
+                             LinearMove, MillingTool, Stock, Toolpath)
 
 FEED = 1200.0  # mm/min
 STOCK = BoxStock((-25.0, -25.0, -15.0), (25.0, 25.0, 0.0))
 BALL = BallEndMill(6.0, 20.0, number=1)
 BULL = BullNoseEndMill(6.0, 20.0, corner_radius=1.0, number=1)
+BAR = CylinderStock((0.0, 0.0, -30.0), 25.0, 30.0)
 
 
 def surface(x: float, y: float, ripple: float = 0.8) -> float:
@@ -83,12 +91,37 @@ def spiral() -> Toolpath:
     return Toolpath((entry, *_polyline(points)), {1: BALL})
 
 
+def round_bar() -> Toolpath:
+    face = []
+    for k, y in enumerate(-21.0 + 7.0 * j for j in range(7)):  # facing, zigzag
+        face += [(-32.0, y, -1.0), (32.0, y, -1.0)][::1 if k % 2 == 0 else -1]
+    moves = [LinearMove((-32.0, -21.0, 5.0), face[0], feed=FEED, tool=1), *_polyline(face)]
+
+    def go(point, rapid=False):
+        moves.append(LinearMove(moves[-1].end, point, feed=None if rapid else FEED, tool=1, rapid=rapid))
+
+    for r in (27.0, 26.0, 25.0):  # the outside down to radius r - 5
+        go((moves[-1].end[0], moves[-1].end[1], 5.0), rapid=True)
+        go((r, -15.0, 5.0), rapid=True)
+        go((r, -15.0, -8.0))
+        go((r, 0.0, -8.0))
+        moves.append(ArcMove((r, 0.0, -8.0), (r, 0.0, -8.0), feed=FEED, tool=1, center=(0.0, 0.0, -8.0),
+                             clockwise=False))
+    go((25.0, 0.0, 5.0), rapid=True)
+    go((-30.0, 2.0, 5.0), rapid=True)
+    go((-30.0, 2.0, -4.0))
+    go((30.0, 2.0, -4.0))  # the slot, 3 mm below the faced top
+    return Toolpath(tuple(moves), {1: FlatEndMill(10.0, 20.0, number=1)})
+
+
 GENERATED: dict[str, tuple] = {
     "gen_raster_ball": raster,
     "gen_waterline_bull": waterline,
     "gen_spiral_ball": spiral,
+    "gen_round_bar_flat": round_bar,
 }
+STOCKS: dict[str, Stock] = {"gen_round_bar_flat": BAR}  # the others cut STOCK
 
 
 def load(name: str) -> tuple[Toolpath, Stock, MillingTool | None]:
-    return GENERATED[name](), STOCK, None
+    return GENERATED[name](), STOCKS.get(name, STOCK), None

@@ -13,7 +13,8 @@ infers (:func:`fusioncut.io.stock.infer_stock`). 3D_Chips names neither in code:
 10 mm ball end mill (25 mm of flutes: the header gives none) in that block. Then the Titan-like
 program (:mod:`titan_program`, full size, its own stock) and a generated 3D finishing set
 (``gen_*``, :mod:`finishing_programs`: ball and bull-nose raster, waterline and spiral passes over a
-free-form surface with a ramp and helical entries).
+free-form surface with a ramp and helical entries; a flat end mill facing, contouring and slotting a
+round bar).
 
 Since the workpiece before a CL follows from the path, the analytic engine starts a window at any
 CL (:meth:`AnalyticEngine.process` with ``start_at``: the sweeps before it are only indexed), so its

@@ -77,3 +77,26 @@ def test_real_programs_benchmark_runs_both_engines_on_the_same_cls(tmp_path):
     assert ana["cls"] == brep["cls"] == 6 and ana["failed"] == brep["failed"] == 0
     assert ana["removed_mm3"] > 1000  # the plunge and the first full-depth raster line
     assert abs(res["removed_relative_difference"]) < 1e-5
+
+
+def test_the_generated_round_bar_program_removes_its_closed_form():
+    """``gen_round_bar_flat`` on the analytic engine: no CL fails and the total is the closed form of
+    its module docstring to 1e-9 (the B-Rep engine's total agrees, docs/benchmark.md)."""
+    import math
+
+    from finishing_programs import load
+
+    from fusioncut.engines.analytic.engine import AnalyticEngine
+    from fusioncut.engines.base import EngineOptions
+
+    toolpath, stock, _ = load("gen_round_bar_flat")
+    engine = AnalyticEngine(EngineOptions(slice_height=1.0))
+    maps = list(engine.run(toolpath, stock))
+    assert maps and all(m.status.value != "failed" and m.engine == "analytic" for m in maps)
+
+    def strip(y):
+        return y * math.sqrt(400.0 - y * y) + 400.0 * math.asin(y / 20.0)
+
+    want = math.pi * 625.0 + math.pi * (625.0 - 400.0) * 7.0 + 3.0 * (strip(7.0) - strip(-3.0))
+    assert sum(m.removed_volume for m in maps) == pytest.approx(want, rel=1e-9)
+    assert engine.ipw_volume == pytest.approx(math.pi * 625.0 * 30.0 - want, rel=1e-9)
