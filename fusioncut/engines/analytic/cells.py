@@ -26,7 +26,10 @@ in it. Among many sweeps left, one is also left out where a single other one lie
 it reaches: its footprint holds the first's whole footprint and its **top** (the highest its lower
 surface gets: its path's highest tip plus ``f(R)``) is at most the first's floor (a helix retraced
 deeper, a pass repeated lower). A cell still met by many sweeps is quartered
-(:func:`relevant_sweeps` says which are left).
+(:func:`relevant_sweeps` says which are left). The same holding decides a whole CL at once: where
+an earlier line sweep holds the CL's whole footprint with its top at or below the CL's lowest tip
+(a pass retraced above a deeper one, a lead-in run again higher up), ``h`` is nowhere above the CL's
+lower surface and it removes nothing (:func:`held_below`).
 """
 from __future__ import annotations
 
@@ -194,14 +197,33 @@ def _holds(A, RA, B, RB):
 
 
 @njit(cache=True)
+def _top(C, j, PP, NPC, RR):
+    """The highest the lower surface of sweep ``C[j]`` gets (mm): its path's highest tip plus ``f(R)``."""
+    k = int(C[j, 12])
+    return max(C[j, 3], C[j, 6]) + profile_height(PP[k, :NPC[k]], RR[k])
+
+
+@njit(cache=True)
+def held_below(S, R, C, PP, NPC, RR):
+    """Whether an earlier line sweep of ``C`` holds the whole footprint of line sweep ``S`` (radius
+    ``R``) with its top at or below ``S``'s lowest tip: then the CL removes nothing (module docstring)."""
+    if S[0] != 0.0:
+        return False
+    low = min(S[3], S[6])
+    for j in range(C.shape[0]):
+        if C[j, 0] == 0.0 and _top(C, j, PP, NPC, RR) <= low and _holds(C[j], RR[int(C[j, 12])], S, R):
+            return True
+    return False
+
+
+@njit(cache=True)
 def _undominated(C, PP, NPC, RR, keep, floors):
     """``keep`` less the sweeps another kept line sweep lies under wherever they reach (module
     docstring); of two equal ones the later is left out."""
     n = C.shape[0]
     top = np.empty(n)
     for j in range(n):
-        k = int(C[j, 12])
-        top[j] = max(C[j, 3], C[j, 6]) + profile_height(PP[k, :NPC[k]], RR[k])
+        top[j] = _top(C, j, PP, NPC, RR)
     out = keep.copy()
     by_top = np.argsort(top)
     for j in range(n):

@@ -12,7 +12,8 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
   volume, whichever is looser (QUADPACK's ``epsabs`` and ``epsrel``), cell by cell: tiles
   (:func:`tiles`), quartered while many earlier sweeps can shape the removed height in them or a
   quarter is proven to remove nothing (and is skipped), each cell integrated with only the sweeps
-  that can shape it there (:mod:`.cells`);
+  that can shape it there (:mod:`.cells`); a CL whose whole footprint an earlier, deeper line sweep
+  holds removes nothing and is not integrated (:func:`.cells.held_below`);
 * its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
   where material was before the CL and the tool's surface is on the sweep's front, their ends
   bisected to 1e-10 rad; the slices are laid out and converted to immersion angles as the B-Rep
@@ -59,7 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from fusioncut.engines.analytic.area import Shape, contact_area
-from fusioncut.engines.analytic.cells import relevant_sweeps
+from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
@@ -462,6 +463,8 @@ class AnalyticEngine:
             return 0.0, tuple(bands)  # beside the stock, or above it: the lower surface is nowhere below the lowest tip
         tables = self._tools
         P, NP, RR = tables.profiles, tables.counts, tables.radii
+        if held_below(row, profile.radius, C, P, NP, RR):
+            return 0.0, tuple(bands)  # retraced above a deeper pass that holds its whole footprint
         total = 0.0
 
         def cull(cell: tuple[float, float, float, float]):

@@ -93,6 +93,55 @@ def test_a_pass_retraced_lower_lies_under_the_first():
     assert keep.all()  # as many as that: not looked for
 
 
+def test_a_cl_whose_footprint_a_deeper_pass_holds_removes_nothing():
+    """held_below: an earlier line sweep holding the CL's whole footprint with its top at or below the
+    CL's lowest tip (a flat pass 3 mm lower; a ball's pass whose top, R above its tips, is at the CL's
+    tip, under the same ball); not a pass beside it, a lower CL, a wider tool, an arc."""
+    from fusioncut.engines.analytic.cells import held_below
+
+    flat, ball = lower_profile(TOOLS["flat"]), lower_profile(TOOLS["ball"])
+    PP = np.zeros((2, max(len(flat.pieces), len(ball.pieces)), 6))
+    PP[0, :len(flat.pieces)], PP[1, :len(ball.pieces)] = flat.pieces, ball.pieces
+    NPC, RR = np.array([len(flat.pieces), len(ball.pieces)]), np.array([flat.radius, ball.radius])
+    R = flat.radius
+
+    def held(own, *rows, radius=R):
+        return held_below(own, radius, np.array(rows), PP, NPC, RR)
+
+    deep = line_row((0, 0, -5), (10, 0, -5), 0)
+    assert held(line_row((2, 0, -2), (8, 0, -2), 0), deep)
+    assert held(line_row((0, 0, -5), (10, 0, -5), 0), deep)  # the same pass again
+    assert not held(line_row((2, 0.01, -2), (8, 0.01, -2), 0), deep)
+    assert not held(line_row((2, 0, -6), (8, 0, -6), 0), deep)
+    assert not held(line_row((2, 0, -2), (8, 0, -2), 0), deep, radius=R + 0.1)
+    ball_deep = line_row((0, 0, -5 - ball.radius), (10, 0, -5 - ball.radius), 1)
+    assert held(line_row((2, 0, -5), (8, 0, -5), 1), ball_deep, radius=ball.radius)
+    assert not held(line_row((2, 0, -5.5), (8, 0, -5.5), 1), ball_deep, radius=ball.radius)
+    assert not held(line_row((2, 0, -5), (8, 0, -5), 0), ball_deep)  # the flat end mill is wider
+    assert not held(arc_row((5, 0, -2), (0, 5, -2), (0, 0), 5.0, 0.0, math.pi / 2, 0), deep)
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.01])
+def test_a_slot_retraced_higher_removes_what_sticks_out_of_it(monkeypatch, offset):
+    """A 6 mm slot 5 mm deep, then the same path 2 mm deep, ``offset`` mm aside: the second pass
+    removes offset x 2 mm per mm of travel (0 when it retraces the slot, without an integral)."""
+    from tests.engines.analytic.test_engine import VOLUME_REL, feed, run
+
+    from fusioncut.model import BoxStock, FlatEndMill, LinearMove
+
+    integrals = []
+    real = analytic.removed_volume
+    monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(a[5][6]) or real(*a))
+    moves = [feed((-40, 0, -5), (40, 0, -5)), LinearMove((40, 0, -5), (40, 0, 5), rapid=True, tool=1),
+             LinearMove((40, 0, 5), (-40, offset, 5), rapid=True, tool=1),
+             LinearMove((-40, offset, 5), (-40, offset, -2), rapid=True, tool=1), feed((-40, offset, -2), (40, offset, -2))]
+    _, maps = run(moves, {1: FlatEndMill(6, 20)}, BoxStock((-30, -20, -10), (30, 20, 0)), max_segment_length=20.0)
+    second = [m for m in maps if m.position[2] == -2.0 and m.start[2] == -2.0]
+    assert len(second) == 4
+    assert sum(m.removed_volume for m in second) == pytest.approx(60.0 * offset * 2.0, rel=VOLUME_REL, abs=1e-12)
+    assert (-2.0 in integrals) == (offset > 0)  # the retraced pass's CLs are never integrated
+
+
 @pytest.mark.parametrize("start", [1512, pytest.param(8515, marks=pytest.mark.slow)])  # slow: without the culling
 def test_culling_leaves_the_cls_as_they_were_on_a_real_program(monkeypatch, start):
     """fusion-posted/1117_wall_28bit.nc CLs 1512-1515: CLs that cross hundreds of earlier passes of a
@@ -128,6 +177,7 @@ def test_culling_leaves_the_cls_as_they_were_on_a_real_program(monkeypatch, star
     monkeypatch.setattr(analytic, "relevant_sweeps", keep_all)
     monkeypatch.setattr(contact, "relevant_sweeps", keep_all)
     monkeypatch.setattr(analytic, "CELL_SWEEPS", 10**9)
+    monkeypatch.setattr(analytic, "held_below", lambda *args: False)  # the retraced entry integrated too
     whole = maps()
     if start == 1512:
         assert sum(m.removed_volume > 0 for m in culled) >= 3
