@@ -495,7 +495,8 @@ class AnalyticEngine:
             rows = np.vstack([row[None, :], Ct])
             radii = [_break_radii(r, P[int(r[12]), :NP[int(r[12])]], (s[2], s[5])) for r in rows]
             circles, segments = boundary_curves(rows, radii)
-            xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1)
+            xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct, CBt, P, NP,
+                          RR, s[2])
             v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
                                    P, NP, RR, s[2], s[5], self.volume_tol, self.volume_rel, edges)
             total += v

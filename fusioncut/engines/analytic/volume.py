@@ -54,6 +54,8 @@ MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this
 # retraced pass, would show dips of round-off)
 KINK_TOL = 1e-12  # mm: a kink's place along a line
 X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
+ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
+# for it to be no break point (_in_nothing_removed)
 _PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
 
 # Gauss-Kronrod 15-point nodes (on [-1, 1]) and weights; the Gauss 7-point weights at the odd nodes
@@ -420,10 +422,42 @@ def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb, change):
 
 
 @njit(cache=True)
-def _crossings_at_x(x, circles, segments, lo, hi):
+def _in_nothing_removed(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
+    """Whether nothing is removed anywhere near (x, y) whatever earlier sweeps ``j`` and ``i`` do there:
+    the point lies strictly outside the CL's footprint, or strictly inside another line sweep's footprint
+    whose lower surface is below the CL's (or the bottom) by more than :data:`ZERO_MARGIN` (both
+    surfaces are continuous there, so that holds around it); the CL's closed-form floor
+    (:func:`.sweeps.sweep_floor`) decides first, its surface only where that does not. A crossing of their curves there is no
+    break point: the removed height is 0 either side of it."""
+    own = sweep_floor(S, P, R, x, y, 0.0)  # the CL's lower surface is at least this; inf outside it
+    if own == math.inf:
+        return True
+    floor = max(own, zb) - ZERO_MARGIN
+    exact = math.nan  # the CL's lower surface itself, found once a sweep needs it
+    for k in range(C.shape[0]):
+        if k == j or k == i or C[k, 0] != 0.0:
+            continue
+        if x < CB[k, 0] or x > CB[k, 2] or y < CB[k, 1] or y > CB[k, 3]:
+            continue
+        t = int(C[k, 12])
+        if point_segment_distance(x, y, C[k, 1], C[k, 2], C[k, 4], C[k, 5]) >= RR[t] - ZERO_MARGIN:
+            continue
+        h = sweep_lower(C[k], PP[t, :NPC[t]], RR[t], x, y, 0.0)
+        if h < floor:
+            return True
+        if math.isnan(exact):
+            exact = max(sweep_lower(S, P, R, x, y, 0.0), zb) - ZERO_MARGIN
+        if h < exact:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb):
     """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; and the index (in the
     cell's rows: 0 the CL's own sweep, j + 1 the earlier sweep ``C[j]``) of the sweep whose curve
-    makes each one (-1 for lo and hi)."""
+    makes each one (-1 for lo and hi). A crossing of an earlier sweep's curve where nothing is removed
+    around it (:func:`_in_nothing_removed`) is left out."""
     out = [lo, hi]
     own = [-1.0, -1.0]
     for i in range(circles.shape[0]):
@@ -432,14 +466,16 @@ def _crossings_at_x(x, circles, segments, lo, hi):
         if s >= 0.0:
             w = math.sqrt(s)
             for y in (circles[i, 1] - w, circles[i, 1] + w):
-                if lo < y < hi:
+                j = int(circles[i, 3]) - 1
+                if lo < y < hi and not (j >= 0 and _in_nothing_removed(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
                     out.append(y)
                     own.append(circles[i, 3])
     for i in range(segments.shape[0]):
         x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
         if x1 != x0 and min(x0, x1) <= x <= max(x0, x1):
             y = y0 + (y1 - y0) * (x - x0) / (x1 - x0)
-            if lo < y < hi:
+            j = int(segments[i, 4]) - 1
+            if lo < y < hi and not (j >= 0 and _in_nothing_removed(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
                 out.append(y)
                 own.append(segments[i, 4])
     pts = np.array(out)
@@ -467,7 +503,7 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
     or ``rel`` of itself, whichever is looser;
     the same integral of the removed height within each band of ``edges`` (its error not controlled
     on its own: it shares the whole integral's nodes))."""
-    pts, owners = _crossings_at_x(x, circles, segments, ylo, yhi)
+    pts, owners = _crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)
     pts, live = _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     nb = max(edges.shape[0] - 1, 0)
     lo = np.empty(_PANELS)
@@ -532,7 +568,7 @@ def _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, 
     :data:`N_PROBE` + 1 samples), without placing the changes: only the sequence counts here. The
     inner integral is smooth in ``x`` while the sequence stays the same; where it changes (a kink
     curve turns back, two cross, the removed region starts or ends) it is not."""
-    pts = _crossings_at_x(x, circles, segments, ylo, yhi)[0]
+    pts = _crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)[0]
     h = np.int64(7)
     last = np.int64(-2)
     for p in range(pts.shape[0] - 1):
@@ -662,23 +698,25 @@ def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tupl
 
 
 @njit(cache=True)
-def _meets(x, y, x0, y0, x1, y1, out):
-    """Appends x to ``out`` where (x, y) lies in the rectangle."""
+def _meets(x, y, x0, y0, x1, y1, a, b, out):
+    """Appends (x, y, a, b) to ``out`` where (x, y) lies in the rectangle (``a``, ``b``: the curves'
+    owners)."""
     if x0 <= x <= x1 and y0 <= y <= y1:
-        out.append(x)
+        out.append((x, y, a, b))
 
 
 @njit(cache=True)
 def curve_meetings_x(circles, segments, x0, y0, x1, y1):
-    """The x (mm) of every point in the rectangle where two of the boundary curves meet (circle and
-    circle, circle and segment, segment and segment). Between them and the curves' extreme x, the
-    order of the curves' crossings along a line x = const stays the same, so a region between two
-    curves (a sliver a flat end mill leaves beside earlier passes) is a stretch of every line through
-    it and a part of the outer integral ends where it begins and ends: no sample has to hit it."""
-    out = [x0]
+    """Every point in the rectangle where two of the boundary curves meet (circle and circle, circle
+    and segment, segment and segment): rows (x, y, the two curves' owners). Between them and the
+    curves' extreme x, the order of the curves' crossings along a line x = const stays the same, so
+    a region between two curves (a sliver a flat end mill leaves beside earlier passes) is a stretch
+    of every line through it and a part of the outer integral ends where it begins and ends: no
+    sample has to hit it."""
+    out = [(x0, y0, -1.0, -1.0)]
     nc, ns = circles.shape[0], segments.shape[0]
     for i in range(nc):
-        ax, ay, ar = circles[i, 0], circles[i, 1], circles[i, 2]
+        ax, ay, ar, ao = circles[i, 0], circles[i, 1], circles[i, 2], circles[i, 3]
         for j in range(i + 1, nc):
             bx, by, br = circles[j, 0], circles[j, 1], circles[j, 2]
             dx, dy = bx - ax, by - ay
@@ -691,8 +729,8 @@ def curve_meetings_x(circles, segments, x0, y0, x1, y1):
             a = (ar * ar - br * br + d2) / (2.0 * d)
             h = math.sqrt(max(ar * ar - a * a, 0.0))
             mx, my = ax + a * dx / d, ay + a * dy / d
-            _meets(mx - h * dy / d, my + h * dx / d, x0, y0, x1, y1, out)
-            _meets(mx + h * dy / d, my - h * dx / d, x0, y0, x1, y1, out)
+            _meets(mx - h * dy / d, my + h * dx / d, x0, y0, x1, y1, ao, circles[j, 3], out)
+            _meets(mx + h * dy / d, my - h * dx / d, x0, y0, x1, y1, ao, circles[j, 3], out)
         for j in range(ns):
             px, py = segments[j, 0], segments[j, 1]
             ux, uy = segments[j, 2] - px, segments[j, 3] - py
@@ -708,7 +746,7 @@ def curve_meetings_x(circles, segments, x0, y0, x1, y1):
             w = math.sqrt(disc)
             for t in ((-b - w) / uu, (-b + w) / uu):
                 if 0.0 <= t <= 1.0:
-                    _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, out)
+                    _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, ao, segments[j, 4], out)
     for i in range(ns):
         px, py = segments[i, 0], segments[i, 1]
         ux, uy = segments[i, 2] - px, segments[i, 3] - py
@@ -721,16 +759,45 @@ def curve_meetings_x(circles, segments, x0, y0, x1, y1):
             t = ((qx - px) * vy - (qy - py) * vx) / den
             u = ((qx - px) * uy - (qy - py) * ux) / den
             if 0.0 <= t <= 1.0 and 0.0 <= u <= 1.0:
-                _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, out)
-    return np.array(out)
+                _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, segments[i, 4], segments[j, 4], out)
+    res = np.empty((len(out), 4))
+    for i in range(len(out)):
+        res[i, 0], res[i, 1], res[i, 2], res[i, 3] = out[i]
+    return res
 
 
-def x_breaks(circles: np.ndarray, segments: np.ndarray, lo: float, hi: float, ylo: float, yhi: float) -> np.ndarray:
-    """Sorted x break points in [lo, hi]: the circles' centres and extreme x, the segments' ends, and
-    where two curves meet within the rectangle [lo, hi] x [ylo, yhi] (:func:`curve_meetings_x`)."""
-    xs = [lo, hi]
-    xs += list(circles[:, 0] - circles[:, 2]) + list(circles[:, 0] + circles[:, 2])
-    xs += list(circles[:, 0]) + list(segments[:, 0]) + list(segments[:, 2])
-    xs += list(curve_meetings_x(circles, segments, lo, ylo, hi, yhi))
-    out = np.unique(np.clip(np.array(xs, dtype=np.float64), lo, hi))
-    return out
+@njit(cache=True)
+def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb):
+    """Sorted x break points in [lo, hi], lo and hi among them: of the points within the rectangle
+    [lo, hi] x [ylo, yhi] where a line x = const meets a curve's end or extreme or two curves meet
+    (:func:`curve_meetings_x`), the circles' centres (a cone's apex) with them, those where the
+    removed height may bend. One outside the rectangle moves no crossing within it; one where nothing
+    is removed around it whatever the curves' sweeps do (:func:`_in_nothing_removed`) bends nothing.
+    A segment along x = const (a line's sweep along y) crosses no line: its x is a break wherever it
+    meets the rectangle."""
+    cand = [(lo, ylo, -1.0, -1.0), (hi, ylo, -1.0, -1.0)]
+    for i in range(circles.shape[0]):
+        cx, cy, r, o = circles[i, 0], circles[i, 1], circles[i, 2], circles[i, 3]
+        cand.append((cx - r, cy, o, o))
+        cand.append((cx + r, cy, o, o))
+        cand.append((cx, cy, o, o))
+    for i in range(segments.shape[0]):
+        x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
+        if x0 == x1:  # along a line x = const: no line crosses it, its x must part the lines
+            if min(y0, y1) <= yhi and max(y0, y1) >= ylo:
+                cand.append((x0, ylo, -1.0, -1.0))
+            continue
+        cand.append((x0, y0, segments[i, 4], segments[i, 4]))
+        cand.append((x1, y1, segments[i, 4], segments[i, 4]))
+    meet = curve_meetings_x(circles, segments, lo, ylo, hi, yhi)
+    for i in range(meet.shape[0]):
+        cand.append((meet[i, 0], meet[i, 1], meet[i, 2], meet[i, 3]))
+    xs = []
+    for x, y, a, b in cand:
+        if not (lo <= x <= hi and ylo <= y <= yhi):
+            continue
+        if a >= 1.0 and b >= 1.0 and _in_nothing_removed(int(a) - 1, int(b) - 1, x, y, S, P, R, C, CB, PP, NPC, RR,
+                                                         zb):
+            continue
+        xs.append(x)
+    return np.unique(np.array(xs))

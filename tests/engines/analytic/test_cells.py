@@ -134,7 +134,8 @@ def test_a_slot_retraced_higher_removes_what_sticks_out_of_it(monkeypatch, offse
     monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(a[5][6]) or real(*a))
     moves = [feed((-40, 0, -5), (40, 0, -5)), LinearMove((40, 0, -5), (40, 0, 5), rapid=True, tool=1),
              LinearMove((40, 0, 5), (-40, offset, 5), rapid=True, tool=1),
-             LinearMove((-40, offset, 5), (-40, offset, -2), rapid=True, tool=1), feed((-40, offset, -2), (40, offset, -2))]
+             LinearMove((-40, offset, 5), (-40, offset, -2), rapid=True, tool=1),
+             feed((-40, offset, -2), (40, offset, -2))]
     _, maps = run(moves, {1: FlatEndMill(6, 20)}, BoxStock((-30, -20, -10), (30, 20, 0)), max_segment_length=20.0)
     second = [m for m in maps if m.position[2] == -2.0 and m.start[2] == -2.0]
     assert len(second) == 4

@@ -1,0 +1,67 @@
+"""The removed volume's break points: which curves part the integral, and which need not."""
+from __future__ import annotations
+
+import numpy as np
+
+from fusioncut.engines.analytic.profile import lower_profile
+from fusioncut.engines.analytic.sweeps import line_row
+from fusioncut.engines.analytic.volume import _crossings_at_x, _in_nothing_removed, boundary_curves, x_breaks
+from fusioncut.model import FlatEndMill
+
+FLAT = lower_profile(FlatEndMill(6, 20))  # R = 3
+PP, NPC, RR = FLAT.pieces[None], np.array([len(FLAT.pieces)]), np.array([FLAT.radius])
+
+
+def _box(row, R=3.0):
+    return [min(row[1], row[4]) - R, min(row[2], row[5]) - R, max(row[1], row[4]) + R, max(row[2], row[5]) + R]
+
+
+def _case(own, *earlier):
+    C = np.array(earlier).reshape(-1, 13)
+    CB = np.array([_box(r) for r in C]).reshape(-1, 4)
+    rows = np.vstack([own[None, :], C])
+    circles, segments = boundary_curves(rows, [(FLAT.radius,)] * len(rows))
+    return C, CB, circles, segments
+
+
+def test_a_point_is_in_nothing_removed_only_outside_the_cl_or_inside_a_deeper_sweep():
+    """A CL 2 mm deep along x, a pass 5 mm deep along y across it (row 0) and one 1 mm deep beside
+    it (row 1): nothing is removed near a point of the deep pass's footprint, whatever row 1 does,
+    nor outside the CL's footprint; beside the deep pass the CL removes material."""
+    own = line_row((-20, 0, -2), (20, 0, -2), 0)
+    C, CB, _, _ = _case(own, line_row((0, -20, -5), (0, 20, -5), 0), line_row((10, -20, -1), (10, 20, -1), 0))
+    args = (own, FLAT.pieces, FLAT.radius, C, CB, PP, NPC, RR, -10.0)
+    assert _in_nothing_removed(1, 1, 1.0, 1.0, *args)  # inside the deep pass
+    assert not _in_nothing_removed(0, 0, 1.0, 1.0, *args)  # the deep pass itself is the one let be
+    assert not _in_nothing_removed(1, 1, 3.0, 1.0, *args)  # on its wall: not strictly inside
+    assert _in_nothing_removed(1, 1, 5.0, 3.5, *args)  # outside the CL's footprint
+    assert not _in_nothing_removed(1, 1, 5.0, 1.0, *args)  # in the CL, beside the deep pass
+
+
+def test_crossings_inside_a_deeper_sweep_are_no_break_points():
+    """A 1 mm deep pass along the CL's path (its footprint's edges at y = +-3, as the CL's), and a
+    5 mm deep pass along y: along x = 1, inside the deep pass, nothing is removed around the shallow
+    pass's edges and they part nothing; the CL's own do. Beside the deep pass, at x = 5, they count."""
+    own = line_row((-20, 0, -2), (20, 0, -2), 0)
+    shallow = line_row((-20, 0, -1), (20, 0, -1), 0)
+    deep = line_row((0, -20, -5), (0, 20, -5), 0)
+    C, CB, circles, segments = _case(own, deep, shallow)
+    pts, owners = _crossings_at_x(1.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
+                                  NPC, RR, -10.0)
+    assert pts.tolist() == [-10.0, -3.0, 3.0, 10.0] and owners.tolist() == [-1.0, 0.0, 0.0, -1.0]
+    pts, owners = _crossings_at_x(5.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
+                                  NPC, RR, -10.0)
+    assert owners.tolist().count(2.0) == 2  # beside the deep pass the shallow one's edges count
+
+
+def test_x_breaks_keep_what_meets_the_cell_and_a_wall_along_y_through_it():
+    """A pass along y (its footprint's sides are segments x = const) through a cell it crosses with
+    both its ends outside the cell: its sides' x are break points (no line x = const crosses them);
+    ends, extremes and centres outside the cell are not."""
+    own = line_row((-20, 0, -2), (20, 0, -2), 0)
+    C, CB, circles, segments = _case(own, line_row((4, -30, -1), (4, -10, -1), 0))
+    xs = x_breaks(circles, segments, -2.0, 10.0, -2.0, 2.0, own, FLAT.pieces, FLAT.radius, C, CB, PP, NPC, RR, -10.0)
+    assert xs.tolist() == [-2.0, 10.0]  # the pass ends at y = -10 - 3: it misses the cell
+    C, CB, circles, segments = _case(own, line_row((4, -30, -1), (4, 30, -1), 0))
+    xs = x_breaks(circles, segments, -2.0, 10.0, -2.0, 2.0, own, FLAT.pieces, FLAT.radius, C, CB, PP, NPC, RR, -10.0)
+    assert xs.tolist() == [-2.0, 1.0, 7.0, 10.0]
