@@ -67,7 +67,8 @@ from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                profile_radius, profile_radius_slope, upper_parts)
 from fusioncut.engines.analytic.sweeps import NCOL, OUTSIDE, arc_row, line_row, outside_row
-from fusioncut.engines.analytic.volume import boundary_curves, removed_volume, x_breaks
+from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
+from fusioncut.engines.analytic.volume import removed_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError

@@ -11,9 +11,10 @@ round bar's outside is one of those sweeps, :func:`.sweeps.outside_row`),
 profile changes piece (a bull-nose's flat meets its corner): there the integrand is cut into
 smooth parts by **break points** found in closed form, the crossings of the line ``x = const`` with
 the footprints' boundary curves (circles about the path's ends and, for an arc, about its centre;
-segments parallel to a line's path, an arc's end radii). The inner integral over ``y`` between
-break points and the outer one over ``x`` (break points: the curves' extreme x and where two curves
-meet, :func:`curve_meetings_x`) are adaptive
+segments parallel to a line's path, an arc's end radii; :mod:`.breaks`, which leaves out those
+where nothing is removed around them). The inner integral over ``y`` between break points and the
+outer one over ``x`` (break points: the curves' extreme x and where two curves meet,
+:func:`.breaks.curve_meetings_x`) are adaptive
 Gauss-Kronrod (7, 15) with a **global** error budget, as QUADPACK's QAG: the part with the largest
 error estimate (QUADPACK's, from the two rules) is halved until the estimates add up to the budget
 (or parts reach :data:`MIN_PART` mm). A budget per part's length would refine a crescent's tip, where
@@ -42,9 +43,10 @@ import math
 import numpy as np
 from numba import njit
 
+from fusioncut.engines.analytic.breaks import crossings_at_x
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import (OUTSIDE, brent_next, brent_start, brent_take,
-                                              point_segment_distance, sweep_floor, sweep_lower)
+from fusioncut.engines.analytic.sweeps import (brent_next, brent_start, brent_take, point_segment_distance,
+                                              sweep_floor, sweep_lower)
 
 MIN_PART = 1e-9  # mm
 N_PROBE = 8  # samples a stretch between break points is probed at for kinks
@@ -54,8 +56,6 @@ MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this
 # retraced pass, would show dips of round-off)
 KINK_TOL = 1e-12  # mm: a kink's place along a line
 X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
-ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
-# for it to be no break point (_in_nothing_removed)
 _PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
 
 # Gauss-Kronrod 15-point nodes (on [-1, 1]) and weights; the Gauss 7-point weights at the odd nodes
@@ -254,7 +254,7 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     left inside a stretch costs the adaptive rule a split at it (:func:`inner_integral`).
 
     A break point between two stretches probed in one and the same state is dropped where its curve
-    (``owners``, as :func:`_crossings_at_x` gives them) is neither the CL's own sweep's nor that of
+    (``owners``, as :func:`.breaks.crossings_at_x` gives them) is neither the CL's own sweep's nor that of
     the sweep giving ``h`` there: the removed height is then smooth across it."""
     out = [pts[0]]
     live = []
@@ -323,7 +323,8 @@ def _line_floor(S, P, x, a, b):
 @njit(cache=True)
 def _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """True only where nothing is removed anywhere on the segment x = ``x``, y in [a, b] (a stretch
-    between break points, so that every sweep's footprint covers all of it or none of it).
+    between break points, so that the CL's footprint covers all of it or none of it; an earlier
+    sweep's may end within it, where nothing is removed around, :mod:`.breaks`).
 
     Outside the CL's footprint at the point between, it is outside everywhere. Else the removed
     height is max(0, min(h, top) - max(L, bottom)) with max(L, bottom) at least ``floor``, the
@@ -331,7 +332,7 @@ def _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     ``floor`` reaches the top, or where the sweep giving ``h`` at the point between is a line: its
     lower surface is convex in (x, y) (the partial minimum over t of the jointly convex
     z(t) + f(|p - c(t)|)), so at most the larger of its values at the ends, and that is below
-    ``floor``."""
+    ``floor`` (both ends in its convex footprint: all of the segment is)."""
     y = 0.5 * (a + b)
     v, j, own = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     if v > 0.0:
@@ -422,68 +423,6 @@ def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb, change):
 
 
 @njit(cache=True)
-def _in_nothing_removed(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
-    """Whether nothing is removed anywhere near (x, y) whatever earlier sweeps ``j`` and ``i`` do there:
-    the point lies strictly outside the CL's footprint, or strictly inside another line sweep's footprint
-    whose lower surface is below the CL's (or the bottom) by more than :data:`ZERO_MARGIN` (both
-    surfaces are continuous there, so that holds around it); the CL's closed-form floor
-    (:func:`.sweeps.sweep_floor`) decides first, its surface only where that does not. A crossing of their curves there is no
-    break point: the removed height is 0 either side of it."""
-    own = sweep_floor(S, P, R, x, y, 0.0)  # the CL's lower surface is at least this; inf outside it
-    if own == math.inf:
-        return True
-    floor = max(own, zb) - ZERO_MARGIN
-    exact = math.nan  # the CL's lower surface itself, found once a sweep needs it
-    for k in range(C.shape[0]):
-        if k == j or k == i or C[k, 0] != 0.0:
-            continue
-        if x < CB[k, 0] or x > CB[k, 2] or y < CB[k, 1] or y > CB[k, 3]:
-            continue
-        t = int(C[k, 12])
-        if point_segment_distance(x, y, C[k, 1], C[k, 2], C[k, 4], C[k, 5]) >= RR[t] - ZERO_MARGIN:
-            continue
-        h = sweep_lower(C[k], PP[t, :NPC[t]], RR[t], x, y, 0.0)
-        if h < floor:
-            return True
-        if math.isnan(exact):
-            exact = max(sweep_lower(S, P, R, x, y, 0.0), zb) - ZERO_MARGIN
-        if h < exact:
-            return True
-    return False
-
-
-@njit(cache=True)
-def _crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb):
-    """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; and the index (in the
-    cell's rows: 0 the CL's own sweep, j + 1 the earlier sweep ``C[j]``) of the sweep whose curve
-    makes each one (-1 for lo and hi). A crossing of an earlier sweep's curve where nothing is removed
-    around it (:func:`_in_nothing_removed`) is left out."""
-    out = [lo, hi]
-    own = [-1.0, -1.0]
-    for i in range(circles.shape[0]):
-        u = x - circles[i, 0]
-        s = circles[i, 2] * circles[i, 2] - u * u
-        if s >= 0.0:
-            w = math.sqrt(s)
-            for y in (circles[i, 1] - w, circles[i, 1] + w):
-                j = int(circles[i, 3]) - 1
-                if lo < y < hi and not (j >= 0 and _in_nothing_removed(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
-                    out.append(y)
-                    own.append(circles[i, 3])
-    for i in range(segments.shape[0]):
-        x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
-        if x1 != x0 and min(x0, x1) <= x <= max(x0, x1):
-            y = y0 + (y1 - y0) * (x - x0) / (x1 - x0)
-            j = int(segments[i, 4]) - 1
-            if lo < y < hi and not (j >= 0 and _in_nothing_removed(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
-                out.append(y)
-                own.append(segments[i, 4])
-    pts = np.array(out)
-    order = np.argsort(pts, kind="mergesort")
-    return pts[order], np.array(own)[order]
-
-
-@njit(cache=True)
 def _worst(err, val, n):
     """Index of the largest of err[:n], the sum of err[:n] and the sum of val[:n]."""
     k = 0
@@ -503,7 +442,7 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
     or ``rel`` of itself, whichever is looser;
     the same integral of the removed height within each band of ``edges`` (its error not controlled
     on its own: it shares the whole integral's nodes))."""
-    pts, owners = _crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)
+    pts, owners = crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)
     pts, live = _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     nb = max(edges.shape[0] - 1, 0)
     lo = np.empty(_PANELS)
@@ -568,7 +507,7 @@ def _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, 
     :data:`N_PROBE` + 1 samples), without placing the changes: only the sequence counts here. The
     inner integral is smooth in ``x`` while the sequence stays the same; where it changes (a kink
     curve turns back, two cross, the removed region starts or ends) it is not."""
-    pts = _crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)[0]
+    pts = crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)[0]
     h = np.int64(7)
     last = np.int64(-2)
     for p in range(pts.shape[0] - 1):
@@ -662,142 +601,3 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
                                0.1 * rel, edges, bands[n])
         n += 1
     return val[:n].sum(), bands[:n].sum(axis=0)
-
-
-def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tuple[np.ndarray, np.ndarray]:
-    """Circles (cx, cy, r, owner) and segments (x0, y0, x1, y1, owner) where the lower surfaces of
-    the sweeps ``rows`` may jump or bend: for each sweep, at each radius of ``radii_of[i]`` (its
-    tool's R and the radii where its profile has a corner), for a stock's outside its circle;
-    ``owner`` is the sweep's index in ``rows``."""
-    circles: list[tuple[float, ...]] = []
-    segments: list[tuple[float, ...]] = []
-    for owner, (row, radii) in enumerate(zip(rows, radii_of)):
-        if row[0] == OUTSIDE:
-            circles.append((row[7], row[8], row[9], owner))
-            continue
-        x0, y0, x1, y1 = row[1], row[2], row[4], row[5]
-        for r in radii:
-            circles += [(x0, y0, r, owner), (x1, y1, r, owner)]
-            if row[0] == 0.0:
-                ux, uy = x1 - x0, y1 - y0
-                n = math.hypot(ux, uy)
-                if n > 0:
-                    nx, ny = -uy / n * r, ux / n * r
-                    segments += [(x0 + nx, y0 + ny, x1 + nx, y1 + ny, owner),
-                                 (x0 - nx, y0 - ny, x1 - nx, y1 - ny, owner)]
-            else:
-                cx, cy, rho, a0, sw = row[7], row[8], row[9], row[10], row[11]
-                circles.append((cx, cy, rho + r, owner))
-                if rho > r:
-                    circles.append((cx, cy, rho - r, owner))
-                for a in (a0, a0 + sw):
-                    ca, sa = math.cos(a), math.sin(a)
-                    lo = max(rho - r, 0.0)
-                    segments.append((cx + lo * ca, cy + lo * sa, cx + (rho + r) * ca, cy + (rho + r) * sa, owner))
-    return (np.array(circles, dtype=np.float64).reshape(-1, 4), np.array(segments, dtype=np.float64).reshape(-1, 5))
-
-
-@njit(cache=True)
-def _meets(x, y, x0, y0, x1, y1, a, b, out):
-    """Appends (x, y, a, b) to ``out`` where (x, y) lies in the rectangle (``a``, ``b``: the curves'
-    owners)."""
-    if x0 <= x <= x1 and y0 <= y <= y1:
-        out.append((x, y, a, b))
-
-
-@njit(cache=True)
-def curve_meetings_x(circles, segments, x0, y0, x1, y1):
-    """Every point in the rectangle where two of the boundary curves meet (circle and circle, circle
-    and segment, segment and segment): rows (x, y, the two curves' owners). Between them and the
-    curves' extreme x, the order of the curves' crossings along a line x = const stays the same, so
-    a region between two curves (a sliver a flat end mill leaves beside earlier passes) is a stretch
-    of every line through it and a part of the outer integral ends where it begins and ends: no
-    sample has to hit it."""
-    out = [(x0, y0, -1.0, -1.0)]
-    nc, ns = circles.shape[0], segments.shape[0]
-    for i in range(nc):
-        ax, ay, ar, ao = circles[i, 0], circles[i, 1], circles[i, 2], circles[i, 3]
-        for j in range(i + 1, nc):
-            bx, by, br = circles[j, 0], circles[j, 1], circles[j, 2]
-            dx, dy = bx - ax, by - ay
-            d2 = dx * dx + dy * dy
-            if d2 <= 0.0:
-                continue
-            d = math.sqrt(d2)
-            if d > ar + br or d < abs(ar - br):
-                continue
-            a = (ar * ar - br * br + d2) / (2.0 * d)
-            h = math.sqrt(max(ar * ar - a * a, 0.0))
-            mx, my = ax + a * dx / d, ay + a * dy / d
-            _meets(mx - h * dy / d, my + h * dx / d, x0, y0, x1, y1, ao, circles[j, 3], out)
-            _meets(mx + h * dy / d, my - h * dx / d, x0, y0, x1, y1, ao, circles[j, 3], out)
-        for j in range(ns):
-            px, py = segments[j, 0], segments[j, 1]
-            ux, uy = segments[j, 2] - px, segments[j, 3] - py
-            uu = ux * ux + uy * uy
-            if uu <= 0.0:
-                continue
-            fx, fy = px - ax, py - ay
-            b = fx * ux + fy * uy
-            c = fx * fx + fy * fy - ar * ar
-            disc = b * b - uu * c
-            if disc < 0.0:
-                continue
-            w = math.sqrt(disc)
-            for t in ((-b - w) / uu, (-b + w) / uu):
-                if 0.0 <= t <= 1.0:
-                    _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, ao, segments[j, 4], out)
-    for i in range(ns):
-        px, py = segments[i, 0], segments[i, 1]
-        ux, uy = segments[i, 2] - px, segments[i, 3] - py
-        for j in range(i + 1, ns):
-            qx, qy = segments[j, 0], segments[j, 1]
-            vx, vy = segments[j, 2] - qx, segments[j, 3] - qy
-            den = ux * vy - uy * vx
-            if den == 0.0:
-                continue
-            t = ((qx - px) * vy - (qy - py) * vx) / den
-            u = ((qx - px) * uy - (qy - py) * ux) / den
-            if 0.0 <= t <= 1.0 and 0.0 <= u <= 1.0:
-                _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, segments[i, 4], segments[j, 4], out)
-    res = np.empty((len(out), 4))
-    for i in range(len(out)):
-        res[i, 0], res[i, 1], res[i, 2], res[i, 3] = out[i]
-    return res
-
-
-@njit(cache=True)
-def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb):
-    """Sorted x break points in [lo, hi], lo and hi among them: of the points within the rectangle
-    [lo, hi] x [ylo, yhi] where a line x = const meets a curve's end or extreme or two curves meet
-    (:func:`curve_meetings_x`), the circles' centres (a cone's apex) with them, those where the
-    removed height may bend. One outside the rectangle moves no crossing within it; one where nothing
-    is removed around it whatever the curves' sweeps do (:func:`_in_nothing_removed`) bends nothing.
-    A segment along x = const (a line's sweep along y) crosses no line: its x is a break wherever it
-    meets the rectangle."""
-    cand = [(lo, ylo, -1.0, -1.0), (hi, ylo, -1.0, -1.0)]
-    for i in range(circles.shape[0]):
-        cx, cy, r, o = circles[i, 0], circles[i, 1], circles[i, 2], circles[i, 3]
-        cand.append((cx - r, cy, o, o))
-        cand.append((cx + r, cy, o, o))
-        cand.append((cx, cy, o, o))
-    for i in range(segments.shape[0]):
-        x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
-        if x0 == x1:  # along a line x = const: no line crosses it, its x must part the lines
-            if min(y0, y1) <= yhi and max(y0, y1) >= ylo:
-                cand.append((x0, ylo, -1.0, -1.0))
-            continue
-        cand.append((x0, y0, segments[i, 4], segments[i, 4]))
-        cand.append((x1, y1, segments[i, 4], segments[i, 4]))
-    meet = curve_meetings_x(circles, segments, lo, ylo, hi, yhi)
-    for i in range(meet.shape[0]):
-        cand.append((meet[i, 0], meet[i, 1], meet[i, 2], meet[i, 3]))
-    xs = []
-    for x, y, a, b in cand:
-        if not (lo <= x <= hi and ylo <= y <= yhi):
-            continue
-        if a >= 1.0 and b >= 1.0 and _in_nothing_removed(int(a) - 1, int(b) - 1, x, y, S, P, R, C, CB, PP, NPC, RR,
-                                                         zb):
-            continue
-        xs.append(x)
-    return np.unique(np.array(xs))

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from fusioncut.engines.analytic.breaks import boundary_curves, crossings_at_x, nothing_removed_near, x_breaks
 from fusioncut.engines.analytic.profile import lower_profile
 from fusioncut.engines.analytic.sweeps import line_row
-from fusioncut.engines.analytic.volume import _crossings_at_x, _in_nothing_removed, boundary_curves, x_breaks
 from fusioncut.model import FlatEndMill
 
 FLAT = lower_profile(FlatEndMill(6, 20))  # R = 3
@@ -24,18 +24,18 @@ def _case(own, *earlier):
     return C, CB, circles, segments
 
 
-def test_a_point_is_in_nothing_removed_only_outside_the_cl_or_inside_a_deeper_sweep():
+def test_a_point_isnothing_removed_near_only_outside_the_cl_or_inside_a_deeper_sweep():
     """A CL 2 mm deep along x, a pass 5 mm deep along y across it (row 0) and one 1 mm deep beside
     it (row 1): nothing is removed near a point of the deep pass's footprint, whatever row 1 does,
     nor outside the CL's footprint; beside the deep pass the CL removes material."""
     own = line_row((-20, 0, -2), (20, 0, -2), 0)
     C, CB, _, _ = _case(own, line_row((0, -20, -5), (0, 20, -5), 0), line_row((10, -20, -1), (10, 20, -1), 0))
     args = (own, FLAT.pieces, FLAT.radius, C, CB, PP, NPC, RR, -10.0)
-    assert _in_nothing_removed(1, 1, 1.0, 1.0, *args)  # inside the deep pass
-    assert not _in_nothing_removed(0, 0, 1.0, 1.0, *args)  # the deep pass itself is the one let be
-    assert not _in_nothing_removed(1, 1, 3.0, 1.0, *args)  # on its wall: not strictly inside
-    assert _in_nothing_removed(1, 1, 5.0, 3.5, *args)  # outside the CL's footprint
-    assert not _in_nothing_removed(1, 1, 5.0, 1.0, *args)  # in the CL, beside the deep pass
+    assert nothing_removed_near(1, 1, 1.0, 1.0, *args)  # inside the deep pass
+    assert not nothing_removed_near(0, 0, 1.0, 1.0, *args)  # the deep pass itself is the one let be
+    assert not nothing_removed_near(1, 1, 3.0, 1.0, *args)  # on its wall: not strictly inside
+    assert nothing_removed_near(1, 1, 5.0, 3.5, *args)  # outside the CL's footprint
+    assert not nothing_removed_near(1, 1, 5.0, 1.0, *args)  # in the CL, beside the deep pass
 
 
 def test_crossings_inside_a_deeper_sweep_are_no_break_points():
@@ -46,10 +46,10 @@ def test_crossings_inside_a_deeper_sweep_are_no_break_points():
     shallow = line_row((-20, 0, -1), (20, 0, -1), 0)
     deep = line_row((0, -20, -5), (0, 20, -5), 0)
     C, CB, circles, segments = _case(own, deep, shallow)
-    pts, owners = _crossings_at_x(1.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
+    pts, owners = crossings_at_x(1.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
                                   NPC, RR, -10.0)
     assert pts.tolist() == [-10.0, -3.0, 3.0, 10.0] and owners.tolist() == [-1.0, 0.0, 0.0, -1.0]
-    pts, owners = _crossings_at_x(5.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
+    pts, owners = crossings_at_x(5.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
                                   NPC, RR, -10.0)
     assert owners.tolist().count(2.0) == 2  # beside the deep pass the shallow one's edges count
 

@@ -1,0 +1,228 @@
+"""Where a CL's removed height may jump or bend: the boundary curves of the sweeps over a cell and
+the break points they make (:mod:`.volume` integrates between them).
+
+Machine frame, mm. Each sweep's lower surface jumps where its footprint ends and bends where its
+tool's profile changes piece: on circles about the path's ends (and, for an arc, about its centre),
+segments beside a line's path and an arc's end radii (:func:`boundary_curves`; a round bar's outside
+on its circle). Along a line x = const the curves' crossings part the inner integral
+(:func:`crossings_at_x`); across lines the curves' ends, extremes, centres and meetings part the
+outer one (:func:`x_breaks`, :func:`curve_meetings_x`).
+
+A curve needs to part nothing where the removed height is 0 on both sides of it whatever its sweep
+does (:func:`nothing_removed_near`): strictly outside the CL's footprint, or strictly inside a deeper
+line sweep's footprint (the finish allowance of a wall beside an earlier ramp's many tiny pieces
+meets dozens of such curves a cell). Nor does a point outside the cell: it moves no crossing within
+it.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fusioncut.engines.analytic.sweeps import OUTSIDE, point_segment_distance, sweep_floor, sweep_lower
+
+ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
+# for it to be no break point (nothing_removed_near)
+
+
+@njit(cache=True)
+def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
+    """Whether nothing is removed anywhere near (x, y) whatever earlier sweeps ``j`` and ``i`` do there:
+    the point lies strictly outside the CL's footprint, or strictly inside another line sweep's footprint
+    whose lower surface is below the CL's (or the bottom) by more than :data:`ZERO_MARGIN` (both
+    surfaces are continuous there, so that holds around it); the CL's closed-form floor
+    (:func:`.sweeps.sweep_floor`) decides first, its surface only where that does not. A crossing of
+    their curves there is no break point: the removed height is 0 either side of it."""
+    own = sweep_floor(S, P, R, x, y, 0.0)  # the CL's lower surface is at least this; inf outside it
+    if own == math.inf:
+        return True
+    floor = max(own, zb) - ZERO_MARGIN
+    exact = math.nan  # the CL's lower surface itself, found once a sweep needs it
+    for k in range(C.shape[0]):
+        if k == j or k == i or C[k, 0] != 0.0:
+            continue
+        if x < CB[k, 0] or x > CB[k, 2] or y < CB[k, 1] or y > CB[k, 3]:
+            continue
+        t = int(C[k, 12])
+        if point_segment_distance(x, y, C[k, 1], C[k, 2], C[k, 4], C[k, 5]) >= RR[t] - ZERO_MARGIN:
+            continue
+        h = sweep_lower(C[k], PP[t, :NPC[t]], RR[t], x, y, 0.0)
+        if h < floor:
+            return True
+        if math.isnan(exact):
+            exact = max(sweep_lower(S, P, R, x, y, 0.0), zb) - ZERO_MARGIN
+        if h < exact:
+            return True
+    return False
+
+
+@njit(cache=True)
+def crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb):
+    """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; and the index (in the
+    cell's rows: 0 the CL's own sweep, j + 1 the earlier sweep ``C[j]``) of the sweep whose curve
+    makes each one (-1 for lo and hi). A crossing of an earlier sweep's curve where nothing is removed
+    around it (:func:`nothing_removed_near`) is left out."""
+    out = [lo, hi]
+    own = [-1.0, -1.0]
+    for i in range(circles.shape[0]):
+        u = x - circles[i, 0]
+        s = circles[i, 2] * circles[i, 2] - u * u
+        if s >= 0.0:
+            w = math.sqrt(s)
+            for y in (circles[i, 1] - w, circles[i, 1] + w):
+                j = int(circles[i, 3]) - 1
+                if lo < y < hi and not (j >= 0 and nothing_removed_near(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
+                    out.append(y)
+                    own.append(circles[i, 3])
+    for i in range(segments.shape[0]):
+        x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
+        if x1 != x0 and min(x0, x1) <= x <= max(x0, x1):
+            y = y0 + (y1 - y0) * (x - x0) / (x1 - x0)
+            j = int(segments[i, 4]) - 1
+            if lo < y < hi and not (j >= 0 and nothing_removed_near(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
+                out.append(y)
+                own.append(segments[i, 4])
+    pts = np.array(out)
+    order = np.argsort(pts, kind="mergesort")
+    return pts[order], np.array(own)[order]
+
+
+def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tuple[np.ndarray, np.ndarray]:
+    """Circles (cx, cy, r, owner) and segments (x0, y0, x1, y1, owner) where the lower surfaces of
+    the sweeps ``rows`` may jump or bend: for each sweep, at each radius of ``radii_of[i]`` (its
+    tool's R and the radii where its profile has a corner), for a stock's outside its circle;
+    ``owner`` is the sweep's index in ``rows``."""
+    circles: list[tuple[float, ...]] = []
+    segments: list[tuple[float, ...]] = []
+    for owner, (row, radii) in enumerate(zip(rows, radii_of)):
+        if row[0] == OUTSIDE:
+            circles.append((row[7], row[8], row[9], owner))
+            continue
+        x0, y0, x1, y1 = row[1], row[2], row[4], row[5]
+        for r in radii:
+            circles += [(x0, y0, r, owner), (x1, y1, r, owner)]
+            if row[0] == 0.0:
+                ux, uy = x1 - x0, y1 - y0
+                n = math.hypot(ux, uy)
+                if n > 0:
+                    nx, ny = -uy / n * r, ux / n * r
+                    segments += [(x0 + nx, y0 + ny, x1 + nx, y1 + ny, owner),
+                                 (x0 - nx, y0 - ny, x1 - nx, y1 - ny, owner)]
+            else:
+                cx, cy, rho, a0, sw = row[7], row[8], row[9], row[10], row[11]
+                circles.append((cx, cy, rho + r, owner))
+                if rho > r:
+                    circles.append((cx, cy, rho - r, owner))
+                for a in (a0, a0 + sw):
+                    ca, sa = math.cos(a), math.sin(a)
+                    lo = max(rho - r, 0.0)
+                    segments.append((cx + lo * ca, cy + lo * sa, cx + (rho + r) * ca, cy + (rho + r) * sa, owner))
+    return (np.array(circles, dtype=np.float64).reshape(-1, 4), np.array(segments, dtype=np.float64).reshape(-1, 5))
+
+
+@njit(cache=True)
+def _meets(x, y, x0, y0, x1, y1, a, b, out):
+    """Appends (x, y, a, b) to ``out`` where (x, y) lies in the rectangle (``a``, ``b``: the curves'
+    owners)."""
+    if x0 <= x <= x1 and y0 <= y <= y1:
+        out.append((x, y, a, b))
+
+
+@njit(cache=True)
+def curve_meetings_x(circles, segments, x0, y0, x1, y1):
+    """Every point in the rectangle where two of the boundary curves meet (circle and circle, circle
+    and segment, segment and segment): rows (x, y, the two curves' owners). Between them and the
+    curves' extreme x, the order of the curves' crossings along a line x = const stays the same, so
+    a region between two curves (a sliver a flat end mill leaves beside earlier passes) is a stretch
+    of every line through it and a part of the outer integral ends where it begins and ends: no
+    sample has to hit it."""
+    out = [(x0, y0, -1.0, -1.0)]
+    nc, ns = circles.shape[0], segments.shape[0]
+    for i in range(nc):
+        ax, ay, ar, ao = circles[i, 0], circles[i, 1], circles[i, 2], circles[i, 3]
+        for j in range(i + 1, nc):
+            bx, by, br = circles[j, 0], circles[j, 1], circles[j, 2]
+            dx, dy = bx - ax, by - ay
+            d2 = dx * dx + dy * dy
+            if d2 <= 0.0:
+                continue
+            d = math.sqrt(d2)
+            if d > ar + br or d < abs(ar - br):
+                continue
+            a = (ar * ar - br * br + d2) / (2.0 * d)
+            h = math.sqrt(max(ar * ar - a * a, 0.0))
+            mx, my = ax + a * dx / d, ay + a * dy / d
+            _meets(mx - h * dy / d, my + h * dx / d, x0, y0, x1, y1, ao, circles[j, 3], out)
+            _meets(mx + h * dy / d, my - h * dx / d, x0, y0, x1, y1, ao, circles[j, 3], out)
+        for j in range(ns):
+            px, py = segments[j, 0], segments[j, 1]
+            ux, uy = segments[j, 2] - px, segments[j, 3] - py
+            uu = ux * ux + uy * uy
+            if uu <= 0.0:
+                continue
+            fx, fy = px - ax, py - ay
+            b = fx * ux + fy * uy
+            c = fx * fx + fy * fy - ar * ar
+            disc = b * b - uu * c
+            if disc < 0.0:
+                continue
+            w = math.sqrt(disc)
+            for t in ((-b - w) / uu, (-b + w) / uu):
+                if 0.0 <= t <= 1.0:
+                    _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, ao, segments[j, 4], out)
+    for i in range(ns):
+        px, py = segments[i, 0], segments[i, 1]
+        ux, uy = segments[i, 2] - px, segments[i, 3] - py
+        for j in range(i + 1, ns):
+            qx, qy = segments[j, 0], segments[j, 1]
+            vx, vy = segments[j, 2] - qx, segments[j, 3] - qy
+            den = ux * vy - uy * vx
+            if den == 0.0:
+                continue
+            t = ((qx - px) * vy - (qy - py) * vx) / den
+            u = ((qx - px) * uy - (qy - py) * ux) / den
+            if 0.0 <= t <= 1.0 and 0.0 <= u <= 1.0:
+                _meets(px + t * ux, py + t * uy, x0, y0, x1, y1, segments[i, 4], segments[j, 4], out)
+    res = np.empty((len(out), 4))
+    for i in range(len(out)):
+        res[i, 0], res[i, 1], res[i, 2], res[i, 3] = out[i]
+    return res
+
+
+@njit(cache=True)
+def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb):
+    """Sorted x break points in [lo, hi], lo and hi among them: of the points within the rectangle
+    [lo, hi] x [ylo, yhi] where a line x = const meets a curve's end or extreme or two curves meet
+    (:func:`curve_meetings_x`), the circles' centres (a cone's apex) with them, those where the
+    removed height may bend. One outside the rectangle moves no crossing within it; one where nothing
+    is removed around it whatever the curves' sweeps do (:func:`nothing_removed_near`) bends nothing.
+    A segment along x = const (a line's sweep along y) crosses no line: its x is a break wherever it
+    meets the rectangle."""
+    cand = [(lo, ylo, -1.0, -1.0), (hi, ylo, -1.0, -1.0)]
+    for i in range(circles.shape[0]):
+        cx, cy, r, o = circles[i, 0], circles[i, 1], circles[i, 2], circles[i, 3]
+        cand.append((cx - r, cy, o, o))
+        cand.append((cx + r, cy, o, o))
+        cand.append((cx, cy, o, o))
+    for i in range(segments.shape[0]):
+        x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
+        if x0 == x1:  # along a line x = const: no line crosses it, its x must part the lines
+            if min(y0, y1) <= yhi and max(y0, y1) >= ylo:
+                cand.append((x0, ylo, -1.0, -1.0))
+            continue
+        cand.append((x0, y0, segments[i, 4], segments[i, 4]))
+        cand.append((x1, y1, segments[i, 4], segments[i, 4]))
+    meet = curve_meetings_x(circles, segments, lo, ylo, hi, yhi)
+    for i in range(meet.shape[0]):
+        cand.append((meet[i, 0], meet[i, 1], meet[i, 2], meet[i, 3]))
+    xs = []
+    for x, y, a, b in cand:
+        if not (lo <= x <= hi and ylo <= y <= yhi):
+            continue
+        if a >= 1.0 and b >= 1.0 and nothing_removed_near(int(a) - 1, int(b) - 1, x, y, S, P, R, C, CB, PP, NPC, RR,
+                                                         zb):
+            continue
+        xs.append(x)
+    return np.unique(np.array(xs))
