@@ -26,6 +26,11 @@ class BoxStock:
         dx, dy, dz = (hi - lo for lo, hi in zip(self.minimum, self.maximum))
         return dx * dy * dz
 
+    @property
+    def bounds(self) -> tuple[float, float, float, float, float, float]:
+        """The box (x0, y0, z0, x1, y1, z1), mm."""
+        return (*self.minimum, *self.maximum)
+
 
 @dataclass(frozen=True)
 class CylinderStock:
@@ -38,6 +43,12 @@ class CylinderStock:
     def __post_init__(self) -> None:
         if self.radius <= 0 or self.height <= 0:
             raise InputError(f"cylinder stock needs radius and height > 0, got r={self.radius} h={self.height}")
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float, float, float]:
+        """The box holding the bar (x0, y0, z0, x1, y1, z1), mm."""
+        (cx, cy, z0), r = self.base_center, self.radius
+        return (cx - r, cy - r, z0, cx + r, cy + r, z0 + self.height)
 
 
 @dataclass(frozen=True)

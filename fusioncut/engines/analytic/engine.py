@@ -151,10 +151,9 @@ class AnalyticEngine:
 
     def start(self, stock: Stock) -> None:
         if isinstance(stock, BoxStock):
-            self._reset((*stock.minimum, *stock.maximum), 0.0)
+            self._reset(stock.bounds, 0.0)
         elif isinstance(stock, CylinderStock):
-            (cx, cy, z0), r = stock.base_center, stock.radius
-            self._reset((cx - r, cy - r, z0, cx + r, cy + r, z0 + stock.height), 0.0, (cx, cy, r))
+            self._reset(stock.bounds, 0.0, (*stock.base_center[:2], stock.radius))
         else:
             raise UnsupportedStock(f"the analytic engine needs a box stock or a round bar, got {type(stock).__name__} "
                                    "(choose the brep engine for it)")

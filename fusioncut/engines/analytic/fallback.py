@@ -42,11 +42,7 @@ def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock_mod
     stock (a box or a round bar) cropped to ``box`` grown by :data:`MARGIN` (a bar: not cropped), less
     the sweeps of ``earlier`` (the CLs before ``cl`` with their footprints, in program order) that
     meet that box. ``why``: the analytic engine's error, named in the map's warning or FAILED reason."""
-    if isinstance(stock_model, CylinderStock):
-        (cx, cy, z0), r = stock_model.base_center, stock_model.radius
-        stock = (cx - r, cy - r, z0, cx + r, cy + r, z0 + stock_model.height)
-    else:
-        stock = (*stock_model.minimum, *stock_model.maximum)
+    stock = stock_model.bounds
     x0, y0 = max(box[0] - MARGIN, stock[0]), max(box[1] - MARGIN, stock[1])
     x1, y1 = min(box[2] + MARGIN, stock[3]), min(box[3] + MARGIN, stock[4])
     base = cl_base(cl)
