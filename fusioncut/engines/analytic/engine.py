@@ -60,6 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from fusioncut.engines.analytic.area import Shape, contact_area
+from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
@@ -67,7 +68,6 @@ from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                profile_radius, profile_radius_slope, upper_parts)
 from fusioncut.engines.analytic.sweeps import NCOL, OUTSIDE, arc_row, line_row, outside_row
-from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.volume import removed_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
