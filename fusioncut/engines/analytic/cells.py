@@ -27,9 +27,10 @@ it reaches: its footprint holds the first's whole footprint and its **top** (the
 surface gets: its path's highest tip plus ``f(R)``) is at most the first's floor (a helix retraced
 deeper, a pass repeated lower). A cell still met by many sweeps is quartered
 (:func:`relevant_sweeps` says which are left). The same holding decides a whole CL at once: where
-an earlier line sweep holds the CL's whole footprint with its top at or below the CL's lowest tip
-(a pass retraced above a deeper one, a lead-in run again higher up), ``h`` is nowhere above the CL's
-lower surface and it removes nothing (:func:`held_below`).
+an earlier sweep holds the CL's whole footprint with its top at or below the CL's lowest tip (a
+pass retraced above a deeper one, a lead-in run again higher up, a contour's spring pass; a line in a
+line, an arc in an arc about the same centre), ``h`` is nowhere above the CL's lower surface and it
+removes nothing (:func:`held_below`).
 """
 from __future__ import annotations
 
@@ -40,6 +41,10 @@ from numba import njit
 
 from fusioncut.engines.analytic.profile import profile_height
 from fusioncut.engines.analytic.sweeps import OUTSIDE, point_segment_distance, sweep_lower
+
+
+HOLD_TOL = 1e-12  # mm: how far a held sweep's path may reach beyond its holder's in held_below (the
+# rounding of a CL piece's radius, of a merged circle's turns)
 
 
 @njit(cache=True)
@@ -186,12 +191,13 @@ def cell_ceiling(S, P, R, x0, y0, x1, y1):
 
 
 @njit(cache=True)
-def _holds(A, RA, B, RB):
+def _holds(A, RA, B, RB, tol=0.0):
     """Whether line sweep ``A``'s footprint (radius ``RA``) holds line sweep ``B``'s (``RB``): both
-    ends of B's path within ``RA - RB`` of A's (the distance to A's path is convex along B's)."""
+    ends of B's path within ``RA - RB`` (+ ``tol``, mm) of A's (the distance to A's path is convex
+    along B's)."""
     if A[0] != 0.0 or B[0] != 0.0 or RB > RA:
         return False
-    room = RA - RB
+    room = RA - RB + tol
     return (point_segment_distance(B[1], B[2], A[1], A[2], A[4], A[5]) <= room
             and point_segment_distance(B[4], B[5], A[1], A[2], A[4], A[5]) <= room)
 
@@ -204,14 +210,37 @@ def _top(C, j, PP, NPC, RR):
 
 
 @njit(cache=True)
+def _holds_arc(A, RA, B, RB):
+    """Whether arc sweep ``A``'s footprint (radius ``RA``) holds arc sweep ``B``'s (``RB``), to
+    :data:`HOLD_TOL` mm: about the same centre, every point of B's path within ``RA - RB`` of A's
+    path. B's angles are taken from where they start within A's (a turn or more of A holds every
+    angle); those beyond A's end lie within ``|rho_A - rho_B| + 2 rho_B sin(gap / 2)`` of it (the
+    turns of a merged circle add up to 2 pi only to rounding)."""
+    room = RA - RB + HOLD_TOL
+    if A[0] != 1.0 or B[0] != 1.0 or A[7] != B[7] or A[8] != B[8] or abs(A[9] - B[9]) > room:
+        return False
+    if abs(A[11]) >= 2.0 * math.pi:
+        return True
+    a_lo, a_hi = min(A[10], A[10] + A[11]), max(A[10], A[10] + A[11])
+    b_lo, b_hi = min(B[10], B[10] + B[11]), max(B[10], B[10] + B[11])
+    turns = math.floor((b_lo - a_lo) / (2.0 * math.pi))
+    gap = max(b_hi - 2.0 * math.pi * turns - a_hi, 0.0)
+    return gap < math.pi and abs(A[9] - B[9]) + 2.0 * B[9] * math.sin(0.5 * gap) <= room
+
+
+@njit(cache=True)
 def held_below(S, R, C, PP, NPC, RR):
-    """Whether an earlier line sweep of ``C`` holds the whole footprint of line sweep ``S`` (radius
-    ``R``) with its top at or below ``S``'s lowest tip: then the CL removes nothing (module docstring)."""
-    if S[0] != 0.0:
+    """Whether an earlier sweep of ``C`` holds the whole footprint of sweep ``S`` (radius ``R``; a
+    line by a line, an arc by an arc about the same centre) with its top at or below ``S``'s lowest
+    tip: then the CL removes nothing (module docstring)."""
+    if S[0] != 0.0 and S[0] != 1.0:
         return False
     low = min(S[3], S[6])
     for j in range(C.shape[0]):
-        if C[j, 0] == 0.0 and _top(C, j, PP, NPC, RR) <= low and _holds(C[j], RR[int(C[j, 12])], S, R):
+        if C[j, 0] != S[0] or _top(C, j, PP, NPC, RR) > low:
+            continue
+        rj = RR[int(C[j, 12])]
+        if _holds(C[j], rj, S, R, HOLD_TOL) if S[0] == 0.0 else _holds_arc(C[j], rj, S, R):
             return True
     return False
 

@@ -12,7 +12,7 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
   volume, whichever is looser (QUADPACK's ``epsabs`` and ``epsrel``), cell by cell: tiles
   (:func:`tiles`), quartered while many earlier sweeps can shape the removed height in them or a
   quarter is proven to remove nothing (and is skipped), each cell integrated with only the sweeps
-  that can shape it there (:mod:`.cells`); a CL whose whole footprint an earlier, deeper line sweep
+  that can shape it there (:mod:`.cells`); a CL whose whole footprint an earlier, deeper sweep
   holds removes nothing and is not integrated (:func:`.cells.held_below`);
 * its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
   where material was before the CL and the tool's surface is on the sweep's front, their ends

@@ -121,6 +121,62 @@ def test_a_cl_whose_footprint_a_deeper_pass_holds_removes_nothing():
     assert not held(arc_row((5, 0, -2), (0, 5, -2), (0, 0), 5.0, 0.0, math.pi / 2, 0), deep)
 
 
+def _arc(rho, a0, sw, z, tool=0, center=(0.0, 0.0)):
+    start = (center[0] + rho * math.cos(a0), center[1] + rho * math.sin(a0), z)
+    end = (center[0] + rho * math.cos(a0 + sw), center[1] + rho * math.sin(a0 + sw), z)
+    return arc_row(start, end, center, rho, a0, sw, tool)
+
+
+def test_an_arc_cl_whose_footprint_a_deeper_arc_holds_removes_nothing():
+    """held_below for arcs: an earlier arc about the same centre whose circle is within the tools'
+    radii' difference and whose angles hold the CL's (a full turn holds any), its top at or below
+    the CL's lowest tip (a contour's spring pass, a circle retraced higher)."""
+    from fusioncut.engines.analytic.cells import held_below
+
+    flat = lower_profile(TOOLS["flat"])
+    PP, NPC, RR = flat.pieces[None], np.array([len(flat.pieces)]), np.array([flat.radius])
+
+    def held(own, *rows, radius=flat.radius):
+        return held_below(own, radius, np.array(rows), PP, NPC, RR)
+
+    circle, half = _arc(10, 0.0, 2 * math.pi, -5), _arc(10, 0.0, math.pi, -5)
+    quarter = _arc(10, math.pi / 4, math.pi / 2, -2)
+    assert held(quarter, circle) and held(quarter, half) and held(_arc(10, math.pi / 4, math.pi / 2, -5), half)
+    assert held(_arc(10, 2 * math.pi + 3 * math.pi / 4, -math.pi / 2, -2), half)  # clockwise, a turn on
+    assert not held(_arc(10, 3 * math.pi / 4, math.pi / 2, -2), half)  # beyond its end
+    assert not held(_arc(10.01, math.pi / 4, math.pi / 2, -2), circle)  # off its circle
+    assert not held(_arc(10, math.pi / 4, math.pi / 2, -2, center=(0.0, 0.01)), circle)  # another centre
+    assert not held(_arc(10, math.pi / 4, math.pi / 2, -6), circle)  # below it
+    assert not held(quarter, circle, radius=flat.radius + 0.1)  # a wider tool
+    assert not held(quarter, line_row((10, -20, -5), (10, 20, -5), 0))  # a line holds no arc here
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.01])
+def test_a_circle_retraced_higher_removes_what_sticks_out_of_it(monkeypatch, offset):
+    """A 6 mm flat end mill's full circle of radius 10 mm 5 mm deep, then one ``offset`` mm wider 2 mm
+    deep (plunged into by a rapid): the second pass removes the annulus the wider circle adds,
+    pi ((13 + offset)² - 13²) x 2 mm³; retracing, its arcs are never integrated."""
+    from tests.engines.analytic.test_engine import VOLUME_REL, run
+
+    from fusioncut.model import ArcMove, BoxStock, FlatEndMill, LinearMove
+
+    integrals = []
+    real = analytic.removed_volume
+    monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(tuple(a[5][[0, 6]])) or real(*a))
+    r = 10.0 + offset
+    moves = [LinearMove((10, 0, 5), (10, 0, -5), rapid=True, tool=1),
+             ArcMove((10, 0, -5), (10, 0, -5), feed=600.0, tool=1, center=(0, 0, -5), clockwise=False),
+             LinearMove((10, 0, -5), (10, 0, 5), rapid=True, tool=1),
+             LinearMove((10, 0, 5), (r, 0, 5), rapid=True, tool=1),
+             LinearMove((r, 0, 5), (r, 0, -2), rapid=True, tool=1),
+             ArcMove((r, 0, -2), (r, 0, -2), feed=600.0, tool=1, center=(0, 0, -2), clockwise=False)]
+    _, maps = run(moves, {1: FlatEndMill(6, 20)}, BoxStock((-20, -20, -10), (20, 20, 0)), max_segment_length=8.0)
+    first_up = next(i for i, m in enumerate(maps) if m.position == (10.0, 0.0, 5.0))
+    second = sum(m.removed_volume for m in maps[first_up:])
+    assert second == pytest.approx(math.pi * ((13.0 + offset) ** 2 - 13.0 ** 2) * 2.0, rel=VOLUME_REL, abs=1e-12)
+    assert ((1.0, -2.0) in integrals) == (offset > 0)
+
+
 @pytest.mark.parametrize("offset", [0.0, 0.01])
 def test_a_slot_retraced_higher_removes_what_sticks_out_of_it(monkeypatch, offset):
     """A 6 mm slot 5 mm deep, then the same path 2 mm deep, ``offset`` mm aside: the second pass
