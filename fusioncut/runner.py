@@ -24,8 +24,8 @@ checkpoint of a parallel run resumes single-process and the other way round. The
 CLs in batches, so there Ctrl-C stops once the batch in progress is done.
 
 The engine option ``engine="analytic"`` runs :class:`~fusioncut.engines.analytic.engine.AnalyticEngine`
-(exact sweeps, no Booleans) instead: box stocks, round bars and tools of revolution only, checked before anything
-is written; with ``workers`` or ``scheduler`` its CLs are computed in chunks on Dask workers
+(exact sweeps, no Booleans) instead: box stocks, round bars and tools of revolution only, checked
+before anything is written; with ``workers`` or ``scheduler`` its CLs are computed in chunks on Dask workers
 (:mod:`fusioncut.engines.analytic.parallel`, the same rows); it keeps no B-Rep workpiece, so the
 IPW export and snapshots are STL only, a mesh of its exact height map (one warning says so; no
 STEP). ``engine="auto"`` (the default) is resolved before anything is written
@@ -306,8 +306,8 @@ def resolve_engine(options: EngineOptions, toolpath: Toolpath, stock: Stock, def
     if why:
         log.info("engine auto: the B-Rep engine runs this job, as %s", why)
         return replace(options, engine=EngineKind.BREP)
-    log.info("engine auto: the analytic engine runs this job (a box or round bar stock, tools of revolution without undercut, "
-             "exact sweeps, no IPW export or snapshot asked)")
+    log.info("engine auto: the analytic engine runs this job (a box or round bar stock, tools of revolution "
+             "without undercut, exact sweeps, no IPW export or snapshot asked)")
     return replace(options, engine=EngineKind.ANALYTIC)
 
 

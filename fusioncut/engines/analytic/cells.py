@@ -151,10 +151,7 @@ def _arc_ceiling_at(S, P, R, x0, y0, x1, y1, t):
     """``z(t) + f(the farthest corner's distance)`` for the arc sweep's tool at ``t`` (mm), where its
     reach holds the whole rectangle; inf where it does not."""
     a = S[10] + t * S[11]
-    cx, cy = S[7] + S[9] * math.cos(a), S[8] + S[9] * math.sin(a)
-    far = 0.0
-    for qx, qy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
-        far = max(far, math.sqrt((qx - cx) ** 2 + (qy - cy) ** 2))
+    far = _farthest_corner(x0, y0, x1, y1, S[7] + S[9] * math.cos(a), S[8] + S[9] * math.sin(a))
     if far > R:
         return math.inf
     return S[3] + t * (S[6] - S[3]) + profile_height(P, far)

@@ -587,7 +587,7 @@ def _break_radii(row: np.ndarray, pieces: np.ndarray, levels: tuple[float, float
     """Radii (mm) about a sweep's path where its lower surface jumps or bends: R and the profile's
     corners (:func:`.profile.corner_radii`); for a level sweep also where it crosses the heights
     ``levels`` (the stock's bottom and top), where the removed height bends. None for a stock's
-    outside (:func:`.volume.boundary_curves` takes its circle)."""
+    outside (:func:`.breaks.boundary_curves` takes its circle)."""
     if row[0] == OUTSIDE:
         return ()
     out = list(corner_radii(pieces))
