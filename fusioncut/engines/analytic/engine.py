@@ -296,7 +296,7 @@ class AnalyticEngine:
             # the bar's outside, cut before the first CL: 1 mm below its bottom, over its whole box
             s, (cx, cy, r) = self.stock, self.round_bar
             self._index.add(outside_row((cx, cy), r, s[2] - 1.0, self._tools.index_of(profile)),
-                            (s[0], s[1], s[3], s[4]), s[2] - 1.0)
+                            (s[0], s[1], s[3], s[4]), s[2] - 1.0, everywhere=True)
         return self._index
 
     def step(self, cl: CL) -> EngagementMap:

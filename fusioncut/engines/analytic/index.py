@@ -61,6 +61,7 @@ class SweepIndex:
         self.z_low = np.zeros(64)
         self.size = 0
         self._bins: dict[tuple[int, int], list[int]] = defaultdict(list)
+        self._everywhere: list[int] = []  # rows met by every query, in no bin (a round bar's outside)
         self._latest: dict[float, int] = {}  # per tool column, its latest row (a CL's parts interleave)
 
     def _bin_range(self, box) -> tuple[range, range]:
@@ -68,11 +69,18 @@ class SweepIndex:
         return (range(math.floor(box[0] / s), math.floor(box[2] / s) + 1),
                 range(math.floor(box[1] / s), math.floor(box[3] / s) + 1))
 
-    def add(self, row: np.ndarray, box: tuple[float, float, float, float], z_low: float) -> int:
+    def add(self, row: np.ndarray, box: tuple[float, float, float, float], z_low: float,
+            everywhere: bool = False) -> int:
         """Store a sweep; one that continues the latest sweep of the same tool part (:func:`continues`,
         the ``tool`` column) is merged into it, so a move cut into many CLs stays one sweep per part
         of the tool (the union of the pieces' sweeps is the sweep of their joined path: the lower
-        surface is a minimum over the path). The row's index."""
+        surface is a minimum over the path). ``everywhere``: a row whose box is the whole stock's is
+        put in no bin (there would be as many as the stock holds) and every query meets it. The
+        row's index."""
+        if everywhere:
+            k = self._append(row, box, z_low)
+            self._everywhere.append(k)
+            return k
         tool = float(row[12])
         k = self._latest.get(tool)
         if k is not None and continues(self.rows[k], row):
@@ -90,6 +98,15 @@ class SweepIndex:
                     if i not in old[0] or j not in old[1]:  # the bins the grown box newly covers
                         self._bins[(i, j)].append(k)
             return k
+        k = self._append(row, box, z_low)
+        self._latest[tool] = k
+        xs, ys = self._bin_range(box)
+        for i in xs:
+            for j in ys:
+                self._bins[(i, j)].append(k)
+        return k
+
+    def _append(self, row: np.ndarray, box: tuple[float, float, float, float], z_low: float) -> int:
         if self.size == self.rows.shape[0]:
             grow = self.rows.shape[0]
             self.rows = np.concatenate([self.rows, np.zeros((grow, NCOL))])
@@ -98,11 +115,6 @@ class SweepIndex:
         k = self.size
         self.rows[k], self.boxes[k], self.z_low[k] = row, box, z_low
         self.size += 1
-        self._latest[tool] = k
-        xs, ys = self._bin_range(box)
-        for i in xs:
-            for j in ys:
-                self._bins[(i, j)].append(k)
         return k
 
     def near(self, box: tuple[float, float, float, float], z_max: float = math.inf) -> np.ndarray:
@@ -112,7 +124,7 @@ class SweepIndex:
         if len(xs) * len(ys) > 4 * max(len(self._bins), 1):
             found = np.arange(self.size)  # a box over most of the grid: scan them all
         else:
-            hits: set[int] = set()
+            hits: set[int] = set(self._everywhere)
             for i in xs:
                 for j in ys:
                     hits.update(self._bins.get((i, j), ()))

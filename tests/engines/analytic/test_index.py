@@ -56,3 +56,20 @@ def test_sweeps_that_do_not_carry_on_stay_apart():
     assert not continues(h, helix_piece(1.0, 2.0, -0.2, -0.3))  # another pitch
     assert not continues(h, helix_piece(1.0, 2.0, -0.2, -0.4, rho=4.5))  # another radius
     assert continues(h, helix_piece(1.0, 2.0, -0.2, -0.4))
+
+
+def test_a_row_over_the_whole_stock_fills_no_bin_and_every_query_meets_it():
+    """A round bar's outside over a 500 mm bar under a 0.2 mm tool's 0.4 mm bins would fill 1.5
+    million bins; stored as met everywhere it fills none, every query meets it, and a later sweep of
+    the same tool is binned and merged as before."""
+    from fusioncut.engines.analytic.sweeps import outside_row
+
+    index = SweepIndex(0.4)
+    k = index.add(outside_row((0.0, 0.0), 250.0, -11.0, 0), (-250.0, -250.0, 250.0, 250.0), -11.0, everywhere=True)
+    assert k == 0 and len(index._bins) == 0
+    first = line_row((0, 0, -1), (1, 0, -1), 0)
+    assert index.add(first, (-0.1, -0.1, 1.1, 0.1), -1.0) == 1
+    assert index.add(line_row((1, 0, -1), (2, 0, -1), 0), (0.9, -0.1, 2.1, 0.1), -1.0) == 1  # merged
+    assert index.near((100.0, 100.0, 100.5, 100.5)).tolist() == [0]
+    assert index.near((0.5, 0.0, 0.6, 0.05)).tolist() == [0, 1]
+    assert index.near((0.5, 0.0, 0.6, 0.05), z_max=-20.0).tolist() == []
