@@ -33,6 +33,11 @@ before the clock starts, in every worker too. ``--out`` writes the figures as JS
 cluster of N processes (:mod:`fusioncut.engines.analytic.parallel`): ``parallel_speedup`` is the
 single-process mean over the parallel one on the same CLs, ``parallel_serial_fraction`` the share
 of the parallel run's wall time the driver worked alone, and the removed volumes must be equal.
+
+``conserv.`` checks each analytic window's volumes (``--no-conservation`` leaves it out): the
+workpiece's volume over the box of the window's footprints is integrated in one piece from the
+sweeps before the window's first CL and after its last (:meth:`AnalyticEngine.material_volume`);
+their difference less the window's removed volume, over the first, is printed.
 """
 from __future__ import annotations
 
@@ -138,8 +143,30 @@ def warm_kernels() -> None:
     list(AnalyticEngine(EngineOptions()).run(Toolpath(toolpath.moves[:4], toolpath.tools), stock))
 
 
+def window_conservation(toolpath: Toolpath, stock: Stock, default: MillingTool | None, options: EngineOptions,
+                        start: int, row: dict) -> float:
+    """|M0 - M1 - V| / M0 for the window of ``row`` (its CLs from ``start``, their removed volume ``V``):
+    ``M0`` and ``M1`` the workpiece's volume over the box holding the window's footprints before its
+    first CL and after its last, each integrated in one piece from the sweeps
+    (:meth:`AnalyticEngine.material_volume`), not from the CLs' volumes."""
+    cls = list(cl_sequence(toolpath, options, default))
+    before, after = AnalyticEngine(options), AnalyticEngine(options)
+    before.start(stock)
+    after.start(stock)
+    boxes = []
+    for cl in cls[:start + row["cls"]]:
+        after.index_only(cl)
+        if cl.index < start:
+            before.index_only(cl)
+        else:
+            boxes += [p.box for p in after.part_sweeps(cl)]
+    box = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes), max(b[3] for b in boxes))
+    m0 = before.material_volume(box)
+    return abs(m0 - after.material_volume(box) - row["removed_mm3"]) / m0 if m0 > 0 else 0.0
+
+
 def run_program(program: Program, options: EngineOptions, cls: int, windows: int, brep: bool,
-                workers: int = 1) -> dict:
+                workers: int = 1, conservation: bool = True) -> dict:
     toolpath, stock, default = load(program)
     total = sum(1 for _ in cl_sequence(toolpath, options, default))
     starts = sorted({0, *(round(k * (total - cls) / max(windows - 1, 1)) for k in range(1, windows))})
@@ -154,6 +181,8 @@ def run_program(program: Program, options: EngineOptions, cls: int, windows: int
         if start > 0:
             next(maps, None)
         row = timed(maps, cls)
+        if conservation and row["cls"]:
+            row["conservation"] = window_conservation(toolpath, stock, default, options, start, row)
         out["windows"].append({"engine": "analytic", "start": start, **row})
     if workers > 1:
         from fusioncut.engines.analytic.parallel import ParallelAnalyticEngine
@@ -181,6 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-brep", action="store_true", help="time the analytic engine only")
     parser.add_argument("--workers", type=int, default=1,
                         help="also run the first window on this many Dask workers (the parallel analytic engine)")
+    parser.add_argument("--no-conservation", action="store_true",
+                        help="leave out the analytic windows' conservation (two integrals of the material a window)")
     parser.add_argument("--out", type=Path, help="write the figures as JSON here")
     args = parser.parse_args(argv)
     chosen = [p for p in PROGRAMS if p.name in args.programs.split(",")]
@@ -188,10 +219,11 @@ def main(argv: list[str] | None = None) -> int:
     warm_kernels()  # numba: compile or load the kernels before any clock starts
     results = []
     print(f"{'program':12s} {'engine':11s} {'start':>6s} {'CLs':>4s} {'cut':>4s} {'fail':>4s} {'mean ms':>9s} "
-          f"{'median':>8s} {'p95':>8s} {'removed mm3':>12s}")
+          f"{'median':>8s} {'p95':>8s} {'removed mm3':>12s} {'conserv.':>9s}")
     for program in chosen:
         try:
-            res = run_program(program, options, args.cls, args.windows, not args.no_brep, args.workers)
+            res = run_program(program, options, args.cls, args.windows, not args.no_brep, args.workers,
+                              not args.no_conservation)
         except Exception as exc:  # a program this engine cannot take is reported, not fatal to the others
             print(f"{program.name:12s} not run: {type(exc).__name__}: {exc}")
             results.append({"program": program.name, "error": f"{type(exc).__name__}: {exc}"})
@@ -199,8 +231,9 @@ def main(argv: list[str] | None = None) -> int:
         for w in res["windows"]:
             if not w["cls"]:
                 continue
+            conserved = f" {w['conservation']:9.1e}" if "conservation" in w else ""
             print(f"{program.name:12s} {w['engine']:11s} {w['start']:6d} {w['cls']:4d} {w['cut']:4d} {w['failed']:4d} "
-                  f"{w['mean_ms']:9.1f} {w['median_ms']:8.1f} {w['p95_ms']:8.1f} {w['removed_mm3']:12.4f}")
+                  f"{w['mean_ms']:9.1f} {w['median_ms']:8.1f} {w['p95_ms']:8.1f} {w['removed_mm3']:12.4f}{conserved}")
         ana = [w for w in res["windows"] if w["engine"] == "analytic" and w["cls"]]
         brep = [w for w in res["windows"] if w["engine"] == "brep" and w["cls"]]
         if len(ana) > 1:

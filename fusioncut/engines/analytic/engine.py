@@ -37,7 +37,9 @@ start at any CL: the sweeps before it are indexed, not evaluated. A checkpoint
 (:meth:`AnalyticEngine.save_checkpoint`) therefore holds the stock, the removed total, the next CL
 and the sweep rows; on resume the rows are indexed again from the path and must equal the saved
 ones (a checkpoint of another toolpath is refused). There is no B-Rep in-process workpiece
-(``ipw`` is None; its volume is the stock's less the removed total), so a run exports none.
+(``ipw`` is None; ``ipw_volume`` is the stock's less the removed total), so a run exports none; its
+volume is integrated from the sweeps alone by :meth:`AnalyticEngine.material_volume`, which checks
+the CLs' volumes (the volume's conservation).
 
 The CL segments are the B-Rep engine's (:func:`fusioncut.engines.segments.segments_for`), so CL
 indices match; a piece of a ramp or helix is swept along the programmed path itself, not as the
@@ -67,7 +69,7 @@ from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, i
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                profile_radius, profile_radius_slope, upper_parts)
-from fusioncut.engines.analytic.sweeps import NCOL, OUTSIDE, arc_row, line_row, outside_row
+from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, line_row, outside_row
 from fusioncut.engines.analytic.volume import removed_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
@@ -450,19 +452,56 @@ class AnalyticEngine:
             return np.zeros(0)
         return ez + dz * np.arange(math.ceil(top / dz - 1e-9) + 1)
 
+    def material_volume(self, box: tuple[float, float, float, float] | None = None) -> float:
+        """The workpiece's volume (mm³) over the XY ``box`` (x0, y0, x1, y1; None: the stock's) after the
+        CLs indexed so far, integrated in one piece from their sweeps: ``min(h, top) - bottom`` where
+        ``h`` is above the bottom, a round bar's outside taken as cut. It is the volume a flat tool
+        wider than the box would remove from below the stock's bottom (:meth:`_removed`, that tool's
+        sweep the CL's), so its cells and error budget are a CL's, tiled at the run's smallest tool
+        radius. It does not read the CLs' removed volumes, whose sum it checks: over a run,
+        ``stock_volume == material_volume() + removed_total`` to the integrals' tolerances (the
+        volume's conservation); over a box holding CLs j..k's footprints, the box's material before
+        CL j less that after CL k is those CLs' removed volume."""
+        s = self.stock
+        if not s:
+            raise InputError("the analytic engine has no stock yet: start() it before asking for its workpiece")
+        box = box or (s[0], s[1], s[3], s[4])
+        t = self._tools
+        n = self._index.size if self._index else 0
+        near = self._index.near(box) if n else np.zeros(0, dtype=np.int64)
+        C, CB = (self._index.rows[near], self._index.boxes[near]) if n else (np.zeros((0, NCOL)), np.zeros((0, 4)))
+        # the wide flat tool's lower profile, one piece (f = 0 out to its radius), last in a copy of the tables
+        reach = 0.5 * math.hypot(box[2] - box[0], box[3] - box[1]) + 1.0
+        wide = LowerProfile(np.array([[LINE, 0.0, reach, 0.0, 0.0, 0.0]]), reach)
+        k = t.profiles.shape[0]
+        P = np.zeros((k + 1, max(t.profiles.shape[1], 1), 6))
+        P[:k], P[k, 0] = t.profiles, wide.pieces[0]
+        tables = (P, np.append(t.counts, 1), np.append(t.radii, reach))
+        if self.round_bar and n == 0:  # its outside is indexed at the first CL
+            cx, cy, r = self.round_bar
+            C = np.vstack([outside_row((cx, cy), r, s[2] - 1.0, k)[None, :], C])
+            CB = np.vstack([[s[0], s[1], s[3], s[4]], CB])
+        cx, cy = 0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])
+        row = line_row((cx, cy, s[2] - 2.0), (cx, cy, s[2] - 2.0), k)
+        scale = float(t.radii.min()) if t.radii.size else reach
+        return self._removed(row, wide, C, CB, box, np.zeros(0), tables, scale)[0]
+
     def _removed(self, row: np.ndarray, profile: LowerProfile, C: np.ndarray, CB: np.ndarray,
-                 box: tuple[float, float, float, float], edges: np.ndarray) -> tuple[float, tuple[float, ...]]:
+                 box: tuple[float, float, float, float], edges: np.ndarray, tables: tuple | None = None,
+                 scale: float | None = None) -> tuple[float, tuple[float, ...]]:
         """The CL's removed volume (mm³) and its parts within the bands between ``edges`` (machine z,
         mm; :func:`.volume.removed_volume`), integrated cell by cell (module docstring), each cell
-        with the sweeps that can shape the removed height in it and its share of the error budget."""
+        with the sweeps that can shape the removed height in it and its share of the error budget.
+        ``tables``: the tools' (profiles, counts, radii) (None: the run's); ``scale`` (mm): the radius
+        the cells are sized by (None: the CL's tool's)."""
         s = self.stock
         bands = np.zeros(max(len(edges) - 1, 0))
         x0, x1 = max(box[0], s[0]), min(box[2], s[3])
         y0, y1 = max(box[1], s[1]), min(box[3], s[4])
         if x0 >= x1 or y0 >= y1 or min(row[3], row[6]) >= s[5]:
             return 0.0, tuple(bands)  # beside the stock, or above it: the lower surface is nowhere below the lowest tip
-        tables = self._tools
-        P, NP, RR = tables.profiles, tables.counts, tables.radii
+        P, NP, RR = tables or (self._tools.profiles, self._tools.counts, self._tools.radii)
+        scale = scale or profile.radius
         if held_below(row, profile.radius, C, P, NP, RR):
             return 0.0, tuple(bands)  # retraced above a deeper pass that holds its whole footprint
         total = 0.0
@@ -474,12 +513,12 @@ class AnalyticEngine:
             return Cm, CB[meet], *relevant_sweeps(*cell, row, profile.pieces, profile.radius, Cm, P, NP, RR, s[2],
                                                   s[5], 0.0, CELL_SWEEPS)
 
-        cells = [(c, cull(c)) for c in tiles(x0, y0, x1, y1, TILE_RADII * profile.radius)]
+        cells = [(c, cull(c)) for c in tiles(x0, y0, x1, y1, TILE_RADII * scale)]
         while cells:
             (cx0, cy0, cx1, cy1), (Cm, CBm, empty, keep, floors) = cells.pop()
             if empty:
                 continue
-            if cx1 - cx0 > MIN_CELL_RADII * profile.radius:
+            if cx1 - cx0 > MIN_CELL_RADII * scale:
                 # quartered where many sweeps are left, or where a quarter is proven empty (its area
                 # then costs nothing)
                 mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)

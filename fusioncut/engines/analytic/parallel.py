@@ -146,6 +146,10 @@ class ParallelAnalyticEngine:
     def ipw_volume(self) -> float:
         return self._local.ipw_volume
 
+    def material_volume(self, box: tuple[float, float, float, float] | None = None) -> float:
+        """:meth:`AnalyticEngine.material_volume` of the local engine, which indexes every CL the workers did."""
+        return self._local.material_volume(box)
+
     def ipw_mesh(self, step: float | None = None) -> Any:
         """:meth:`AnalyticEngine.ipw_mesh` of the local engine, which indexes every CL the workers did."""
         return self._local.ipw_mesh(step)
