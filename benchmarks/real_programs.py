@@ -149,8 +149,8 @@ def window_conservation(toolpath: Toolpath, stock: Stock, default: MillingTool |
     ``M0`` and ``M1`` the workpiece's volume over the box holding the window's footprints before its
     first CL and after its last, each integrated in one piece from the sweeps
     (:meth:`AnalyticEngine.material_volume`), not from the CLs' volumes."""
-    cls = list(cl_sequence(toolpath, options, default))
     before, after = AnalyticEngine(options), AnalyticEngine(options)
+    cls = list(after.cl_sequence(toolpath, default))
     before.start(stock)
     after.start(stock)
     boxes = []

@@ -148,7 +148,6 @@ def _export_height_map(inputs, cl: int, out: Path, grid: float | None) -> None:
     """The analytic engine's workpiece after CL ``cl`` as an STL (:meth:`AnalyticEngine.ipw_mesh`):
     the CLs up to it are only indexed (their sweeps), nothing is cut, so it takes seconds."""
     from fusioncut.engines.analytic.engine import AnalyticEngine
-    from fusioncut.engines.cl_maps import cl_sequence
     from fusioncut.io.mesh import mesh_volume, write_stl
 
     toolpath, stock, options, default_tool, _ = inputs
@@ -156,7 +155,7 @@ def _export_height_map(inputs, cl: int, out: Path, grid: float | None) -> None:
     engine.check_tools(toolpath, default_tool)
     engine.start(stock)
     total = 0
-    for c in cl_sequence(toolpath, options, default_tool):
+    for c in engine.cl_sequence(toolpath, default_tool):
         if c.index <= cl:
             engine.index_only(c)
         total = c.index + 1

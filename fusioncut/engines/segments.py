@@ -37,21 +37,50 @@ from dataclasses import replace
 from fusioncut.model.moves import ArcMove, ArcPlane, LinearMove, Move
 
 
-def chords(arc: ArcMove, chord_tolerance: float) -> list[LinearMove]:
-    """Chords of a helix or ZX/YZ arc with sagitta <= ``chord_tolerance`` (mm)."""
+def _chord_count(arc: ArcMove, chord_tolerance: float) -> int:
+    """How many chords of ``arc`` keep the sagitta within ``chord_tolerance`` mm."""
     rho = max(arc.radius, arc.end_radius)
     if chord_tolerance >= rho:
-        n = max(1, math.ceil(abs(arc.sweep) / math.pi))
-    else:
-        dmax = 2 * math.acos(1 - chord_tolerance / rho)
-        n = max(1, math.ceil(abs(arc.sweep) / dmax - 1e-12))
+        return max(1, math.ceil(abs(arc.sweep) / math.pi))
+    dmax = 2 * math.acos(1 - chord_tolerance / rho)
+    return max(1, math.ceil(abs(arc.sweep) / dmax - 1e-12))
+
+
+def chords(arc: ArcMove, chord_tolerance: float) -> list[LinearMove]:
+    """Chords of a helix or ZX/YZ arc with sagitta <= ``chord_tolerance`` (mm)."""
+    n = _chord_count(arc, chord_tolerance)
     pts = [arc.point_at(k / n) for k in range(n + 1)]
     pts[-1] = arc.end
-    return [
-        LinearMove(pts[k], pts[k + 1], feed=arc.feed, spindle_rpm=arc.spindle_rpm, tool=arc.tool,
-                   operation=arc.operation, source=arc.source)
-        for k in range(n)
-    ]
+    return [chord(arc, pts[k], pts[k + 1]) for k in range(n)]
+
+
+def chord(move: Move, start, end) -> LinearMove:
+    """The line from ``start`` to ``end`` with ``move``'s feed, tool, operation and source."""
+    return LinearMove(start, end, feed=move.feed, spindle_rpm=move.spindle_rpm, tool=move.tool,
+                      operation=move.operation, source=move.source)
+
+
+def helix_pieces(arc: ArcMove, chord_tolerance: float, max_segment_length: float | None) -> list[ArcMove]:
+    """The pieces of a steep XY helix that :func:`chords` would make, then :meth:`~Move.split` each of
+    those chords, each piece on the helix itself: the same CL segments, ending at the same points of
+    the helix where a chord's end lies on it, for an engine that sweeps helices exactly."""
+    n = _chord_count(arc, chord_tolerance)
+    out: list[ArcMove] = []
+    for k in range(n):
+        piece = arc.piece(k / n, (k + 1) / n)
+        length = math.dist(piece.start, piece.end)  # its chord's, as the chord is split
+        m = 1 if max_segment_length is None or length <= max_segment_length \
+            else math.ceil(length / max_segment_length - 1e-9)
+        out += [piece.piece(j / m, (j + 1) / m) for j in range(m)] if m > 1 else [piece]
+    return out
+
+
+def as_chord(move: Move) -> Move:
+    """A piece of :func:`helix_pieces` as the chord an engine that cannot sweep it takes (within
+    ``chord_tolerance`` of it); any other move itself."""
+    if isinstance(move, ArcMove) and move.plane == ArcPlane.XY and move.is_helix and _oblique(move) is None:
+        return chord(move, move.start, move.end)
+    return move
 
 
 _EPS = 1e-9
@@ -111,8 +140,10 @@ def step_motion(move: Move) -> Move:
 
 
 def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float | None = None,
-                chord_tolerance: float = 1e-3, ramp_step: float = 5e-2) -> list[Move]:
-    """The CL segments of ``moves``, in order; no move is dropped (a zero-length one stays a segment)."""
+                chord_tolerance: float = 1e-3, ramp_step: float = 5e-2, exact_helices: bool = False) -> list[Move]:
+    """The CL segments of ``moves``, in order; no move is dropped (a zero-length one stays a segment).
+    ``exact_helices``: a helix too steep to be stepped is cut into :func:`helix_pieces`, not chords
+    (the same CL segments, swept on the helix)."""
     out: list[Move] = []
     for move in moves:
         # a spiral (an arc whose end radius is off its start's: posts round I/J and end points) is
@@ -120,7 +151,11 @@ def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float 
         # segments, so that the segments of one arc share one circle as they do on exact arcs
         for m in move.circular_pieces(chord_tolerance) if isinstance(move, ArcMove) else [move]:
             # ZX / YZ arcs, and helices too steep to be stepped, become chords first
-            curved = isinstance(m, ArcMove) and (m.plane != ArcPlane.XY or (m.is_helix and _oblique(m) is None))
+            steep = isinstance(m, ArcMove) and m.plane == ArcPlane.XY and m.is_helix and _oblique(m) is None
+            if steep and exact_helices:
+                out += helix_pieces(m, chord_tolerance, max_segment_length)
+                continue
+            curved = steep or (isinstance(m, ArcMove) and m.plane != ArcPlane.XY)
             pieces = chords(m, chord_tolerance) if curved else [m]
             for piece in pieces:
                 for step in staircase(piece, ramp_step):
@@ -128,9 +163,9 @@ def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float 
     return out
 
 
-def segments_for(moves: list[Move] | tuple[Move, ...], options) -> list[Move]:
+def segments_for(moves: list[Move] | tuple[Move, ...], options, exact_helices: bool = False) -> list[Move]:
     """:func:`cl_segments` with the lengths of an :class:`~fusioncut.engines.base.EngineOptions`."""
-    return cl_segments(moves, options.max_segment_length, options.chord_tolerance, options.ramp_step)
+    return cl_segments(moves, options.max_segment_length, options.chord_tolerance, options.ramp_step, exact_helices)
 
 
 def horizontal_direction(move: Move) -> tuple[float, float] | None:
@@ -142,4 +177,5 @@ def horizontal_direction(move: Move) -> tuple[float, float] | None:
     return (t[0] / h, t[1] / h)
 
 
-__all__ = ["chords", "cl_segments", "horizontal_direction", "segments_for", "staircase", "step_motion"]
+__all__ = ["as_chord", "chord", "chords", "cl_segments", "helix_pieces", "horizontal_direction", "segments_for",
+           "staircase", "step_motion"]

@@ -265,13 +265,21 @@ class AnalyticEngine:
         """One map per CL segment from CL ``start_at`` on; the sweeps of the CLs before it are only
         indexed (their removed volume is not counted in ``removed_total``). After
         :meth:`load_checkpoint` they must be the checkpoint's sweeps (else :class:`CheckpointMismatch`)."""
-        for cl in cl_sequence(toolpath, self.options, default_tool):
+        for cl in self.cl_sequence(toolpath, default_tool):
             if cl.index < start_at:
                 self.index_only(cl)
                 continue
             if cl.index == start_at:
                 self.check_saved_sweeps(toolpath)
             yield self.step(cl)
+
+    def cl_sequence(self, toolpath: Toolpath, default_tool: MillingTool | None = None,
+                    start_at: int = 0) -> Iterator[CL]:
+        """The CL segments this engine computes: :func:`.cl_maps.cl_sequence`'s (the same CLs as the
+        B-Rep engine's), a helix too steep to be stepped cut into pieces on the helix rather than
+        chords (:func:`fusioncut.engines.segments.helix_pieces`): it sweeps helices exactly, and the
+        pieces of one helix are one sweep in its index. :meth:`index_only` takes these."""
+        return cl_sequence(toolpath, self.options, default_tool, start_at, exact_helices=True)
 
     def index_only(self, cl: CL) -> None:
         """Take CL ``cl`` as done without computing it: its sweep is indexed, nothing is counted."""

@@ -1,22 +1,22 @@
 """A CL the analytic engine could not compute, computed by the B-Rep engine on a local workpiece.
 
 The workpiece before CL k is the stock less the sweeps of CLs 0..k-1 (:mod:`.engine`), so the
-material a CL can touch is known without the rest of the run: :func:`brep_fallback` builds it
-with the B-Rep engine (:class:`~fusioncut.engines.brep.engine.BRepEngine`, which alone builds
-B-Rep solids) on the stock box cropped to the CL's sweep footprint grown by :data:`MARGIN` mm (a
-round bar whole: a stock model holds no cropped bar; the earlier CLs cut are still only the near ones),
+material a CL can touch is known without the rest of the run: :func:`brep_fallback` builds it with
+the B-Rep engine (:class:`~fusioncut.engines.brep.engine.BRepEngine`, which alone builds B-Rep
+solids) on the stock box cropped to the CL's sweep footprint grown by :data:`MARGIN` mm (a round bar
+whole: a stock model holds no cropped bar; the earlier CLs cut are still only the near ones),
 cutting into it, in program order, the earlier CLs whose footprints meet that box, and then steps
-the CL itself. Its map is the B-Rep engine's (``engine="brep"``, with a warning naming the
-analytic engine's error), so it agrees with an all-B-Rep run to the Booleans' fuzzy values: the
-earlier CLs are swept as the B-Rep engine sweeps them (a piece of a ramp as a level step), and the
-cells' edges lie elsewhere. A map from here never raises: when the local workpiece cannot be built
-(an earlier CL's Boolean fails) or the B-Rep engine fails the CL, the map is FAILED, naming the CL
-and both reasons.
+the CL itself. Its map is the B-Rep engine's (``engine="brep"``, with a warning naming the analytic
+engine's error), so it agrees with an all-B-Rep run to the Booleans' fuzzy values: the earlier CLs
+are swept as the B-Rep engine sweeps them (a piece of a ramp as a level step, one of a steep helix
+as its chord), and the cells' edges lie elsewhere. A map from here never raises: when the local
+workpiece cannot be built (an earlier CL's Boolean fails) or the B-Rep engine fails the CL, the map
+is FAILED, naming the CL and both reasons.
 
-Mechanism invariants: nothing here changes the analytic engine's state (the caller indexes the
-CL's sweep, so later CLs see it cut whatever happened here); the cost is that of the earlier CLs
-near the CL, paid only for a CL that needed it. The kernel is imported on first use, so a run
-without such a CL never loads it.
+Mechanism invariants: nothing here changes the analytic engine's state (the caller indexes the CL's
+sweep, so later CLs see it cut whatever happened here); the cost is that of the earlier CLs near the
+CL, paid only for a CL that needed it. The kernel is imported on first use, so a run without such a
+CL never loads it.
 """
 from __future__ import annotations
 
@@ -26,6 +26,7 @@ from dataclasses import replace
 
 from fusioncut.engines.base import EngineKind, EngineOptions
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, engagement_map
+from fusioncut.engines.segments import as_chord
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.stock import BoxStock, CylinderStock, Stock
 
@@ -34,6 +35,12 @@ log = logging.getLogger("fusioncut.analytic")
 MARGIN = 1.0  # mm around the CL's footprint: the local workpiece's walls stay clear of its sweep
 
 Box = tuple[float, float, float, float]  # (x0, y0, x1, y1), mm
+
+
+def _chorded(cl: CL) -> CL:
+    """``cl`` as the B-Rep engine takes it: a piece of a steep helix as its chord
+    (:func:`fusioncut.engines.segments.as_chord`, within the chord tolerance of it)."""
+    return cl._replace(move=as_chord(cl.move))
 
 
 def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock_model: Stock,
@@ -62,7 +69,7 @@ def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock_mod
                 continue
             if last is None or e.index != last + 1:
                 engine.cleared = None  # the tool the previous CL left is only known along the path
-            outcome, _ = engine.cut(*e)
+            outcome, _ = engine.cut(*_chorded(e))
             if outcome.status == CLStatus.FAILED:
                 return EngagementMap(**base, status=CLStatus.FAILED, engine=EngineKind.BREP.value,
                                      reason=f"analytic engine: {why}; the B-Rep engine's local workpiece failed at "
@@ -70,7 +77,7 @@ def brep_fallback(cl: CL, box: Box, earlier: Sequence[tuple[CL, Box]], stock_mod
             last = e.index
         if last is None or cl.index != last + 1:
             engine.cleared = None
-        m = engine.step(*cl)
+        m = engine.step(*_chorded(cl))
     except Exception as exc:  # noqa: BLE001 - the last net: this CL fails, the run goes on
         log.error("CL %d (%s): the B-Rep engine's fallback failed: %s", cl.index, cl.move.source, exc)
         return EngagementMap(**base, status=CLStatus.FAILED, engine=EngineKind.BREP.value,

@@ -37,7 +37,7 @@ from typing import Any
 
 from fusioncut.engines.analytic.engine import AnalyticEngine
 from fusioncut.engines.base import EngineKind, EngineOptions
-from fusioncut.engines.cl_maps import CL, cl_sequence
+from fusioncut.engines.cl_maps import CL
 from fusioncut.engines.dask_cluster import close_quietly, open_client
 from fusioncut.model.engagement import EngagementMap
 from fusioncut.model.moves import Toolpath
@@ -70,7 +70,7 @@ def _compute_chunk(run: str, toolpath: Toolpath, stock: Stock, options: EngineOp
     if state is None or state.run != run or state.next_cl > start:
         engine = AnalyticEngine(options)
         engine.start(stock)
-        state = _WorkerState(run, engine, cl_sequence(toolpath, options, default_tool))
+        state = _WorkerState(run, engine, engine.cl_sequence(toolpath, default_tool))
         _STATE[thread] = state
     maps = []
     for cl in state.cls:
@@ -180,7 +180,7 @@ class ParallelAnalyticEngine:
         t_run = time.perf_counter()
         serial = 0.0
         t = time.perf_counter()
-        cls = list(cl_sequence(toolpath, self.options, default_tool))
+        cls = list(self._local.cl_sequence(toolpath, default_tool))
         for cl in cls[:start_at]:
             self._local.index_only(cl)
         if start_at < len(cls):

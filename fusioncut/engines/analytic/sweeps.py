@@ -94,6 +94,12 @@ def outside_lower(S, px, py, eps):
 
 
 @njit(cache=True)
+def is_flat(P):
+    """Whether the lower profile ``P`` is a flat end mill's: one line piece of slope 0 (f = 0 out to R)."""
+    return P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0
+
+
+@njit(cache=True)
 def is_ball(P, R):
     """Whether the lower profile ``P`` (radius ``R``) is a ball's: one arc of radius R about (0, R)."""
     return P.shape[0] == 1 and P[0, 0] == ARC and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R
@@ -394,7 +400,7 @@ def arc_lower(S, P, R, px, py, eps):
             return math.inf
         return S[3] + profile_height(P, d if d < R else R)
     best = math.inf
-    flat = P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0  # a flat end mill's f: constant
+    flat = is_flat(P)  # a flat end mill's f: constant
     # convex: the value is convex over each window's part within R, of half-width wr (-1: none, only
     # the eps margin), which spans no more than cos(u) >= limit (module docstring)
     limit = 0.0 if is_ball(P, R) else min(rho, Q) / max(rho, Q)
@@ -431,8 +437,45 @@ def arc_lower(S, P, R, px, py, eps):
 @njit(cache=True)
 def arc_depth(S, P, R, px, py, pz):
     """min over t of phi(t) = |p - c(t)| - rho(pz - z(t)) on an arc sweep (mm): < 0 where the point
-    lies strictly inside some tool position of the sweep."""
+    lies strictly inside some tool position of the sweep. A flat end mill's in closed form
+    (:func:`_flat_arc_depth`), another tool's sampled and refined (:func:`_window_min`)."""
+    if is_flat(P):
+        return _flat_arc_depth(S, R, px, py, pz)
     return _window_min(1, S, P, R, px, py, pz, 0.0, 1.0)
+
+
+@njit(cache=True)
+def _arc_nearest(S, px, py, ta, tb):
+    """The least XY distance (mm) from p to the arc's path over t in [ta, tb]: d² = rho² + Q² - 2 rho
+    Q cos u with u the angle from the direction of p, least where u passes a multiple of 2 pi, else
+    at the nearer end."""
+    qx, qy = px - S[7], py - S[8]
+    Q, rho = math.sqrt(qx * qx + qy * qy), S[9]
+    psi = math.atan2(qy, qx)
+    u0, u1 = S[10] + ta * S[11] - psi, S[10] + tb * S[11] - psi
+    lo, hi = min(u0, u1), max(u0, u1)
+    c = 1.0 if 2.0 * math.pi * math.ceil(lo / (2.0 * math.pi)) <= hi else max(math.cos(lo), math.cos(hi))
+    return math.sqrt(max(rho * rho + Q * Q - 2.0 * rho * Q * c, 0.0))
+
+
+@njit(cache=True)
+def _flat_arc_depth(S, R, px, py, pz):
+    """:func:`arc_depth` of a flat end mill: rho(h) = R at and above the tip, -1 below it, so phi is
+    the XY distance less R where z(t) <= pz and the distance plus 1 where z(t) > pz; z is linear in
+    t, so each is the least distance over one interval of t (:func:`_arc_nearest`)."""
+    z0, z1 = S[3], S[6]
+    if z1 == z0:
+        tc = 1.0 if pz >= z0 else -1.0  # every position at or below pz, or none
+    else:
+        tc = (pz - z0) / (z1 - z0)  # z(t) <= pz for t <= tc rising, for t >= tc falling
+    below_lo, below_hi = (0.0, min(tc, 1.0)) if z1 >= z0 else (max(tc, 0.0), 1.0)
+    above_lo, above_hi = (max(tc, 0.0), 1.0) if z1 >= z0 else (0.0, min(tc, 1.0))
+    best = math.inf
+    if below_lo <= below_hi:
+        best = _arc_nearest(S, px, py, below_lo, below_hi) - R
+    if above_lo <= above_hi and (z1 != z0 or tc < 0.0):
+        best = min(best, _arc_nearest(S, px, py, above_lo, above_hi) + 1.0)
+    return best
 
 
 # -- either --------------------------------------------------------------------------------------

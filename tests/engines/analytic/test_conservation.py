@@ -10,7 +10,6 @@ import pytest
 
 from fusioncut.engines.analytic.engine import AnalyticEngine
 from fusioncut.engines.base import EngineOptions
-from fusioncut.engines.cl_maps import cl_sequence
 from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CylinderStock, FlatEndMill, LinearMove,
                              Toolpath)
 from tests.engines.analytic.test_engine import feed, run
@@ -77,7 +76,7 @@ def test_a_mixed_program_conserves_its_volume():
     assert abs(eng.stock_volume - material - removed) <= VOLUME_REL * (material + removed)
 
     # the window: the 3D line and the helix, from the first CL that goes below the arc's height
-    cls = list(cl_sequence(toolpath, options, None))
+    cls = list(eng.cl_sequence(toolpath))
     first = next(c.index for c in cls if c.move.end[2] < -1.5 - 1e-9)
     last = next(c.index for c in cls if c.move.end == (-8.333, 3.333, -6.2))
     window = maps[first:last + 1]

@@ -156,3 +156,31 @@ def test_helix_lower_surface_to_the_refined_samples(kind, rho, sw, z):
         seen += 1
         assert L == pytest.approx(B, abs=1e-9)
     assert seen > 20
+
+
+def test_flat_end_mill_arc_depth_closed_form_against_the_sampled_one():
+    """A flat end mill's arc_depth is the least XY distance to the path's positions at or below the
+    point less R (or that to those above plus 1): the same sign and, where it is below 0.5 mm, the
+    same value (1e-6) as the sampled and refined minimum another tool gets, on arcs and helices up
+    and down, and never above it; exactly -R at a position's own tip height and centre."""
+    from fusioncut.engines.analytic.sweeps import _window_min, arc_depth
+
+    P = lower_profile(FlatEndMill(6, 20)).pieces
+    rng = np.random.default_rng(7)
+    for i in range(2000):
+        rho, a0, sw = rng.uniform(0.2, 8), rng.uniform(-4, 4), rng.uniform(-8, 8)
+        z0 = rng.uniform(-3, 0)
+        z1 = z0 + (0.0 if i % 3 == 0 else rng.uniform(-3, 3))
+        c = (rng.uniform(-2, 2), rng.uniform(-2, 2))
+        S = arc_row((c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z0),
+                    (c[0] + rho * math.cos(a0 + sw), c[1] + rho * math.sin(a0 + sw), z1), c, rho, a0, sw, 0)
+        p = (rng.uniform(-12, 12), rng.uniform(-12, 12), rng.uniform(-4, 1))
+        exact, sampled = arc_depth(S, P, 3.0, *p), _window_min(1, S, P, 3.0, *p, 0.0, 1.0)
+        assert (exact < -1e-9) == (sampled < -1e-9)
+        assert exact <= sampled + 1e-12
+        if exact < 0.5:
+            assert exact == pytest.approx(sampled, abs=1e-6)
+    S = arc_row((5.0, 0.0, -1.0), (0.0, 5.0, -2.0), (0.0, 0.0), 5.0, 0.0, math.pi / 2, 0)
+    mid = (5 * math.sqrt(0.5), 5 * math.sqrt(0.5), -1.5)
+    assert arc_depth(S, P, 3.0, *mid) == pytest.approx(-3.0, abs=1e-12)
+    assert arc_depth(S, P, 3.0, mid[0], mid[1], -2.5) == pytest.approx(1.0, abs=1e-12)  # below every tip
