@@ -29,8 +29,9 @@ deeper, a pass repeated lower). A cell still met by many sweeps is quartered
 (:func:`relevant_sweeps` says which are left). The same holding decides a whole CL at once: where
 an earlier sweep holds the CL's whole footprint with its top at or below the CL's lowest tip (a
 pass retraced above a deeper one, a lead-in run again higher up, a contour's spring pass; a line in a
-line, an arc in an arc about the same centre), ``h`` is nowhere above the CL's lower surface and it
-removes nothing (:func:`held_below`).
+line, an arc in an arc about the same centre), or where the CL goes over part of an earlier sweep's
+path at or above it with the same tool (a helical entry or a ramp run again), ``h`` is nowhere above
+the CL's lower surface and it removes nothing (:func:`held_below`).
 """
 from __future__ import annotations
 
@@ -226,15 +227,62 @@ def _holds_arc(A, RA, B, RB):
 
 
 @njit(cache=True)
+def _line_z_under(A, px, py):
+    """The least tip height (mm) of line sweep ``A``'s positions at (px, py), or inf where its path
+    passes farther than :data:`HOLD_TOL` from there (a vertical path stands on one point)."""
+    ux, uy = A[4] - A[1], A[5] - A[2]
+    n2 = ux * ux + uy * uy
+    if n2 == 0.0:
+        return min(A[3], A[6]) if math.hypot(px - A[1], py - A[2]) <= HOLD_TOL else math.inf
+    u = min(max(((px - A[1]) * ux + (py - A[2]) * uy) / n2, 0.0), 1.0)
+    if math.hypot(A[1] + u * ux - px, A[2] + u * uy - py) > HOLD_TOL:
+        return math.inf
+    return A[3] + u * (A[6] - A[3])
+
+
+@njit(cache=True)
+def _retraces(A, B):
+    """Whether sweep ``B`` goes over part of sweep ``A``'s path at or above it: the same tool, and
+    each of B's tool positions over one of A's at the same XY (to :data:`HOLD_TOL` mm) and no lower.
+    Then B's lower surface is nowhere below A's (a minimum over positions each at or above one of
+    A's), so B removes nothing A left. Both heights are linear along the shared path, so B's ends
+    decide: on a line, both on A's path; on an arc, about the same centre and radius, B's angles
+    within A's a whole number of turns on (each turn of a helix tried)."""
+    if A[0] != B[0] or A[12] != B[12]:
+        return False
+    if A[0] == 0.0:
+        return (_line_z_under(A, B[1], B[2]) <= B[3] + HOLD_TOL
+                and _line_z_under(A, B[4], B[5]) <= B[6] + HOLD_TOL)
+    if A[0] != 1.0 or abs(A[7] - B[7]) > HOLD_TOL or abs(A[8] - B[8]) > HOLD_TOL or abs(A[9] - B[9]) > HOLD_TOL:
+        return False
+    slack = HOLD_TOL / max(A[9], HOLD_TOL)  # rad
+    a_lo, a_hi = min(A[10], A[10] + A[11]), max(A[10], A[10] + A[11])
+    (b_lo, z_lo), (b_hi, z_hi) = sorted(((B[10], B[3]), (B[10] + B[11], B[6])))
+    for k in range(math.ceil((a_lo - b_lo - slack) / (2.0 * math.pi)),
+                   math.floor((a_hi - b_hi + slack) / (2.0 * math.pi)) + 1):
+        shift = 2.0 * math.pi * k
+        za_lo = A[3] + (b_lo + shift - A[10]) / A[11] * (A[6] - A[3])
+        za_hi = A[3] + (b_hi + shift - A[10]) / A[11] * (A[6] - A[3])
+        if za_lo <= z_lo + HOLD_TOL and za_hi <= z_hi + HOLD_TOL:
+            return True
+    return False
+
+
+@njit(cache=True)
 def held_below(S, R, C, PP, NPC, RR):
     """Whether an earlier sweep of ``C`` holds the whole footprint of sweep ``S`` (radius ``R``; a
     line by a line, an arc by an arc about the same centre) with its top at or below ``S``'s lowest
-    tip: then the CL removes nothing (module docstring)."""
+    tip, or ``S`` retraces part of its path at or above it (:func:`_retraces`): then the CL removes
+    nothing (module docstring)."""
     if S[0] != 0.0 and S[0] != 1.0:
         return False
     low = min(S[3], S[6])
     for j in range(C.shape[0]):
-        if C[j, 0] != S[0] or _top(C, j, PP, NPC, RR) > low:
+        if C[j, 0] != S[0]:
+            continue
+        if R <= RR[int(C[j, 12])] and _retraces(C[j], S):
+            return True
+        if _top(C, j, PP, NPC, RR) > low:
             continue
         rj = RR[int(C[j, 12])]
         if _holds(C[j], rj, S, R, HOLD_TOL) if S[0] == 0.0 else _holds_arc(C[j], rj, S, R):

@@ -96,7 +96,8 @@ def test_a_pass_retraced_lower_lies_under_the_first():
 def test_a_cl_whose_footprint_a_deeper_pass_holds_removes_nothing():
     """held_below: an earlier line sweep holding the CL's whole footprint with its top at or below the
     CL's lowest tip (a flat pass 3 mm lower; a ball's pass whose top, R above its tips, is at the CL's
-    tip, under the same ball); not a pass beside it, a lower CL, a wider tool, an arc."""
+    tip, under the same ball), or retraced by it higher up; not a pass beside it, a lower CL, a wider
+    tool, an arc."""
     from fusioncut.engines.analytic.cells import held_below
 
     flat, ball = lower_profile(TOOLS["flat"]), lower_profile(TOOLS["ball"])
@@ -116,7 +117,9 @@ def test_a_cl_whose_footprint_a_deeper_pass_holds_removes_nothing():
     assert not held(line_row((2, 0, -2), (8, 0, -2), 0), deep, radius=R + 0.1)
     ball_deep = line_row((0, 0, -5 - ball.radius), (10, 0, -5 - ball.radius), 1)
     assert held(line_row((2, 0, -5), (8, 0, -5), 1), ball_deep, radius=ball.radius)
-    assert not held(line_row((2, 0, -5.5), (8, 0, -5.5), 1), ball_deep, radius=ball.radius)
+    # its top is above this CL's tip, but the CL goes over its path higher up (_retraces)
+    assert held(line_row((2, 0, -5.5), (8, 0, -5.5), 1), ball_deep, radius=ball.radius)
+    assert not held(line_row((2, 0, -8.5), (8, 0, -5.5), 1), ball_deep, radius=ball.radius)
     assert not held(line_row((2, 0, -5), (8, 0, -5), 0), ball_deep)  # the flat end mill is wider
     assert not held(arc_row((5, 0, -2), (0, 5, -2), (0, 0), 5.0, 0.0, math.pi / 2, 0), deep)
 
@@ -273,3 +276,62 @@ def test_a_finishing_pass_grazing_the_last_one_removes_the_same_in_any_cells(mon
 
     for a, b in zip(volumes(4.0), volumes(0.5)):
         assert a > 10 and a == pytest.approx(b, rel=1e-9)
+
+
+def test_a_sweep_retracing_an_earlier_path_at_or_above_it():
+    """_retraces: a line on an earlier line's path, at or above it at both ends (both heights are
+    linear along it); a helix piece on an earlier helix about the same centre and radius, at or above
+    one of its turns at the same angles. The same tool only; beyond the path, off it or below it, no."""
+    from fusioncut.engines.analytic.cells import _retraces
+
+    ramp = line_row((0.0, 0.0, 0.0), (10.0, 5.0, -2.0), 0)
+    assert _retraces(ramp, line_row((2.0, 1.0, -0.4), (6.0, 3.0, -1.2), 0))  # on it
+    assert _retraces(ramp, line_row((6.0, 3.0, 1.0), (2.0, 1.0, -0.3), 0))  # above, backwards
+    assert _retraces(ramp, line_row((4.0, 2.0, 0.0), (4.0, 2.0, -0.8), 0))  # a plunge onto it
+    assert not _retraces(ramp, line_row((2.0, 1.0, -0.41), (6.0, 3.0, -1.2), 0))  # below at one end
+    assert not _retraces(ramp, line_row((2.0, 1.0, 0.0), (12.0, 6.0, 0.0), 0))  # beyond its end
+    assert not _retraces(ramp, line_row((2.0, 1.0 + 1e-9, 0.0), (6.0, 3.0 + 1e-9, 0.0), 0))  # beside it
+    assert not _retraces(ramp, line_row((2.0, 1.0, -0.4), (6.0, 3.0, -1.2), 1))  # another tool
+    plunge = line_row((1.0, 1.0, 5.0), (1.0, 1.0, -3.0), 0)
+    assert _retraces(plunge, line_row((1.0, 1.0, 2.0), (1.0, 1.0, -3.0), 0))
+    assert not _retraces(plunge, line_row((1.0, 1.0, 2.0), (1.0, 1.0, -3.5), 0))
+
+    def helix(a0, sw, z0, z1, rho=2.0, tool=0):
+        s = (1.0 + rho * math.cos(a0), rho * math.sin(a0), z0)
+        e = (1.0 + rho * math.cos(a0 + sw), rho * math.sin(a0 + sw), z1)
+        return arc_row(s, e, (1.0, 0.0), rho, a0, sw, tool)
+
+    bore = helix(0.0, 6 * math.pi, 0.0, -6.0)  # three turns down, 1 mm a radian / pi
+    assert _retraces(bore, helix(0.5, 0.2, -0.5 / math.pi, -0.7 / math.pi))  # a piece of it
+    assert _retraces(bore, helix(0.5 + 2 * math.pi, 0.2, 0.0, -0.1))  # a turn on, higher than its second turn
+    assert _retraces(bore, helix(0.7, -0.2, 1.0, 1.0))  # level above, clockwise
+    assert not _retraces(bore, helix(0.5, 0.2, -5.0, -5.1))  # below its last turn there
+    assert not _retraces(bore, helix(6 * math.pi - 0.1, 0.2, -6.0, -6.0))  # beyond its end
+    assert not _retraces(bore, helix(0.5, 0.2, 0.0, 0.0, rho=2.0 + 1e-9))
+    assert not _retraces(bore, helix(0.5, 0.2, 0.0, 0.0, tool=1))
+
+
+def test_a_steep_helical_entry_run_twice_removes_nothing_the_second_time(monkeypatch):
+    """The second run of a steep helical entry and its ramp out retraces the first: its CLs remove 0
+    with none of them integrated (held_below), the first run's volume unchanged."""
+    from fusioncut.model import ArcMove, BoxStock, FlatEndMill, LinearMove, Toolpath
+
+    def entry():
+        s = (4.0, 0.0, 0.0)
+        return [LinearMove((4.0, 0.0, 3.0), s, feed=300.0, tool=1),
+                ArcMove(s, (4.0, 0.0, -4.0), feed=600.0, tool=1, center=(3.0, 0.0, 0.0), clockwise=False),
+                LinearMove((4.0, 0.0, -4.0), (9.0, 0.0, -5.0), feed=600.0, tool=1),
+                LinearMove((9.0, 0.0, -5.0), (9.0, 0.0, 3.0), feed=300.0, tool=1, rapid=True)]
+
+    stock = BoxStock((-20, -20, -20), (20, 20, 0))
+    options = EngineOptions(chord_tolerance=0.02)
+    once = list(analytic.AnalyticEngine(options).run(Toolpath(tuple(entry()), {1: FlatEndMill(6, 20)}), stock))
+    assert sum(m.removed_volume for m in once) > 50
+    integrals = []
+    real = analytic.removed_volume
+    monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(a[5][6]) or real(*a))
+    engine = analytic.AnalyticEngine(options)
+    engine.start(stock)
+    again = list(engine.process(Toolpath(tuple(entry() * 2), {1: FlatEndMill(6, 20)}), start_at=len(once)))
+    assert len(again) == len(once) and all(m.removed_volume == 0.0 for m in again)
+    assert integrals == []
