@@ -55,6 +55,7 @@ from pathlib import Path
 from finishing_programs import GENERATED  # beside this script, on the path when it runs
 from finishing_programs import load as load_generated
 from titan_program import STOCK_MAX, STOCK_MIN, titan_program
+from fusioncut.engines.analytic.conservation import window_material
 from fusioncut.engines.analytic.engine import AnalyticEngine
 from fusioncut.engines.base import EngineOptions
 from fusioncut.engines.cl_maps import cl_sequence
@@ -147,22 +148,9 @@ def window_conservation(toolpath: Toolpath, stock: Stock, default: MillingTool |
                         start: int, row: dict) -> float:
     """|M0 - M1 - V| / M0 for the window of ``row`` (its CLs from ``start``, their removed volume ``V``):
     ``M0`` and ``M1`` the workpiece's volume over the box holding the window's footprints before its
-    first CL and after its last, each integrated in one piece from the sweeps
-    (:meth:`AnalyticEngine.material_volume`), not from the CLs' volumes."""
-    before, after = AnalyticEngine(options), AnalyticEngine(options)
-    cls = list(after.cl_sequence(toolpath, default))
-    before.start(stock)
-    after.start(stock)
-    boxes = []
-    for cl in cls[:start + row["cls"]]:
-        after.index_only(cl)
-        if cl.index < start:
-            before.index_only(cl)
-        else:
-            boxes += [p.box for p in after.part_sweeps(cl)]
-    box = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes), max(b[3] for b in boxes))
-    m0 = before.material_volume(box)
-    return abs(m0 - after.material_volume(box) - row["removed_mm3"]) / m0 if m0 > 0 else 0.0
+    first CL and after its last, each integrated from the sweeps alone (:mod:`.analytic.conservation`)."""
+    m0, m1 = window_material(toolpath, stock, options, start, start + row["cls"], default)
+    return abs(m0 - m1 - row["removed_mm3"]) / m0 if m0 > 0 else 0.0
 
 
 def run_program(program: Program, options: EngineOptions, cls: int, windows: int, brep: bool,

@@ -5,7 +5,9 @@ which lies on the programmed path (on a chord, within ``chord_tolerance``, for t
 
 * Horizontal lines, XY arcs and vertical plunges are swept exactly.
 * Arcs in the ZX / YZ planes, and helices steeper than ``STAIRCASE_SLOPE``, become chords whose
-  sagitta ``rho * (1 - cos(dtheta / 2))`` is at most ``chord_tolerance`` mm.
+  sagitta ``rho * (1 - cos(dtheta / 2))`` is at most ``chord_tolerance`` mm. For an engine that
+  sweeps helices exactly (the analytic one) such a helix becomes the same CL segments on the helix
+  itself (:func:`helix_pieces`), so that both engines' CLs are the same ones.
 * Feed moves that go down or up while moving sideways at a slope up to ``STAIRCASE_SLOPE`` (ramps,
   helices, those chords) are cut into pieces on the path that the engine sweeps as a **staircase**:
   each piece as the horizontal move (a line, or an XY arc for a helix) at the height of its end

@@ -8,6 +8,7 @@ import math
 
 import pytest
 
+from fusioncut.engines.analytic.conservation import window_material
 from fusioncut.engines.analytic.engine import AnalyticEngine
 from fusioncut.engines.base import EngineOptions
 from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CylinderStock, FlatEndMill, LinearMove,
@@ -81,16 +82,6 @@ def test_a_mixed_program_conserves_its_volume():
     last = next(c.index for c in cls if c.move.end == (-8.333, 3.333, -6.2))
     window = maps[first:last + 1]
     assert sum(m.removed_volume > 0 for m in window) >= 3
-    before, after = AnalyticEngine(options), AnalyticEngine(options)
-    before.start(STOCK)
-    after.start(STOCK)
-    boxes = []
-    for c in cls[:last + 1]:
-        after.index_only(c)
-        if c.index < first:
-            before.index_only(c)
-        else:
-            boxes += [p.box for p in after.part_sweeps(c)]
-    box = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes), max(b[3] for b in boxes))
-    m0, m1, taken = before.material_volume(box), after.material_volume(box), sum(m.removed_volume for m in window)
+    m0, m1 = window_material(toolpath, STOCK, options, first, last + 1)
+    taken = sum(m.removed_volume for m in window)
     assert abs(m0 - m1 - taken) <= VOLUME_REL * (m0 + m1 + taken)
