@@ -19,7 +19,8 @@ from fusioncut.model.tools import MillingTool
 def window_material(toolpath: Toolpath, stock: Stock, options: EngineOptions, start: int, stop: int,
                     default_tool: MillingTool | None = None) -> tuple[float, float]:
     """(the material (mm³) over the box of the footprints of CLs ``start``..``stop - 1`` before CL
-    ``start``, the same after CL ``stop - 1``), each integrated from the sweeps alone."""
+    ``start``, the same after CL ``stop - 1``), each integrated from the sweeps alone; (0, 0) where
+    every sweep of the window lies above the stock's top."""
     before, after = AnalyticEngine(options), AnalyticEngine(options)
     before.start(stock)
     after.start(stock)
@@ -30,9 +31,9 @@ def window_material(toolpath: Toolpath, stock: Stock, options: EngineOptions, st
         after.index_only(cl)
         if cl.index < start:
             before.index_only(cl)
-        else:
-            boxes += [p.box for p in after.part_sweeps(cl)]
-    if not boxes:
-        raise ValueError(f"no CL in {start}..{stop - 1}")
+        else:  # a sweep wholly above the stock's top (a rapid over it) takes nothing: its box is left out
+            boxes += [p.box for p in after.part_sweeps(cl) if p.z_low < after.stock[5]]
+    if not boxes:  # nothing of the window reaches into the stock: no material changes
+        return 0.0, 0.0
     box = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes), max(b[3] for b in boxes))
     return before.material_volume(box), after.material_volume(box)
