@@ -390,12 +390,7 @@ def arc_lower(S, P, R, px, py, eps):
     b1 = b0 + sw
     lo, hi = min(b0, b1), max(b0, b1)
     if S[6] == S[3]:  # level: lowest where the arc passes nearest p, the direction of p or an end
-        k = math.ceil(lo / (2.0 * math.pi))
-        if 2.0 * math.pi * k <= hi:
-            d = abs(Q - rho)
-        else:
-            c = max(math.cos(b0), math.cos(b1))
-            d = math.sqrt(max(rho * rho + Q * Q - 2.0 * rho * Q * c, 0.0))
+        d = _circle_nearest(Q, rho, lo, hi)
         if d > Re:
             return math.inf
         return S[3] + profile_height(P, d if d < R else R)
@@ -445,17 +440,23 @@ def arc_depth(S, P, R, px, py, pz):
 
 
 @njit(cache=True)
+def _circle_nearest(Q, rho, lo, hi):
+    """The least distance (mm) from a point at ``Q`` from a circle's centre to the circle's points
+    (radius ``rho``) at angles ``u`` in [lo, hi] from the point's direction: d² = rho² + Q² - 2 rho Q
+    cos u, least where u passes a multiple of 2 pi (``|Q - rho|``), else at the nearer end."""
+    if 2.0 * math.pi * math.ceil(lo / (2.0 * math.pi)) <= hi:
+        return abs(Q - rho)
+    c = max(math.cos(lo), math.cos(hi))
+    return math.sqrt(max(rho * rho + Q * Q - 2.0 * rho * Q * c, 0.0))
+
+
+@njit(cache=True)
 def _arc_nearest(S, px, py, ta, tb):
-    """The least XY distance (mm) from p to the arc's path over t in [ta, tb]: d² = rho² + Q² - 2 rho
-    Q cos u with u the angle from the direction of p, least where u passes a multiple of 2 pi, else
-    at the nearer end."""
+    """The least XY distance (mm) from p to the arc's path over t in [ta, tb] (:func:`_circle_nearest`)."""
     qx, qy = px - S[7], py - S[8]
-    Q, rho = math.sqrt(qx * qx + qy * qy), S[9]
     psi = math.atan2(qy, qx)
     u0, u1 = S[10] + ta * S[11] - psi, S[10] + tb * S[11] - psi
-    lo, hi = min(u0, u1), max(u0, u1)
-    c = 1.0 if 2.0 * math.pi * math.ceil(lo / (2.0 * math.pi)) <= hi else max(math.cos(lo), math.cos(hi))
-    return math.sqrt(max(rho * rho + Q * Q - 2.0 * rho * Q * c, 0.0))
+    return _circle_nearest(math.sqrt(qx * qx + qy * qy), S[9], min(u0, u1), max(u0, u1))
 
 
 @njit(cache=True)
