@@ -253,7 +253,8 @@ def _retraces(A, B):
     if A[0] == 0.0:
         return (_line_z_under(A, B[1], B[2]) <= B[3] + HOLD_TOL
                 and _line_z_under(A, B[4], B[5]) <= B[6] + HOLD_TOL)
-    if A[0] != 1.0 or abs(A[7] - B[7]) > HOLD_TOL or abs(A[8] - B[8]) > HOLD_TOL or abs(A[9] - B[9]) > HOLD_TOL:
+    if (A[0] != 1.0 or A[11] == 0.0 or abs(A[7] - B[7]) > HOLD_TOL or abs(A[8] - B[8]) > HOLD_TOL
+            or abs(A[9] - B[9]) > HOLD_TOL):
         return False
     slack = HOLD_TOL / max(A[9], HOLD_TOL)  # rad
     a_lo, a_hi = min(A[10], A[10] + A[11]), max(A[10], A[10] + A[11])
