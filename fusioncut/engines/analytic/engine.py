@@ -265,6 +265,9 @@ class AnalyticEngine:
         """One map per CL segment from CL ``start_at`` on; the sweeps of the CLs before it are only
         indexed (their removed volume is not counted in ``removed_total``). After
         :meth:`load_checkpoint` they must be the checkpoint's sweeps (else :class:`CheckpointMismatch`)."""
+        if not self.stock:
+            raise InputError("the analytic engine has no stock yet: start() it (or load a checkpoint) "
+                             "before processing")
         for cl in self.cl_sequence(toolpath, default_tool):
             if cl.index < start_at:
                 self.index_only(cl)

@@ -11,6 +11,7 @@ import pytest
 from fusioncut.engines.analytic.conservation import window_material
 from fusioncut.engines.analytic.engine import AnalyticEngine
 from fusioncut.engines.base import EngineOptions
+from fusioncut.errors import InputError
 from fusioncut.model import (ArcMove, BallEndMill, BoxStock, BullNoseEndMill, CylinderStock, FlatEndMill, LinearMove,
                              Toolpath)
 from tests.engines.analytic.test_engine import feed, run
@@ -24,8 +25,10 @@ def test_untouched_stock_is_its_volume():
         eng = AnalyticEngine(EngineOptions())
         eng.start(stock)
         assert eng.material_volume() == pytest.approx(volume, rel=1e-12)
-    with pytest.raises(Exception, match="start"):
+    with pytest.raises(InputError, match="start"):
         AnalyticEngine(EngineOptions()).material_volume()
+    with pytest.raises(InputError, match="start"):  # not a CL failing on an empty stock
+        next(AnalyticEngine(EngineOptions()).process(Toolpath((feed((0, 0, 5), (0, 0, -1)),), {1: FlatEndMill(6, 20)})))
 
 
 def test_a_slot_closed_form():
