@@ -70,9 +70,7 @@ def helix_pieces(arc: ArcMove, chord_tolerance: float, max_segment_length: float
     out: list[ArcMove] = []
     for k in range(n):
         piece = arc.piece(k / n, (k + 1) / n)
-        length = math.dist(piece.start, piece.end)  # its chord's, as the chord is split
-        m = 1 if max_segment_length is None or length <= max_segment_length \
-            else math.ceil(length / max_segment_length - 1e-9)
+        m = len(chord(piece, piece.start, piece.end).split(max_segment_length))  # as its chord is split
         out += [piece.piece(j / m, (j + 1) / m) for j in range(m)] if m > 1 else [piece]
     return out
 

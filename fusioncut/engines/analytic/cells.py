@@ -281,11 +281,11 @@ def held_below(S, R, C, PP, NPC, RR):
     for j in range(C.shape[0]):
         if C[j, 0] != S[0]:
             continue
-        if R <= RR[int(C[j, 12])] and _retraces(C[j], S):
+        rj = RR[int(C[j, 12])]
+        if R <= rj and _retraces(C[j], S):
             return True
         if _top(C, j, PP, NPC, RR) > low:
             continue
-        rj = RR[int(C[j, 12])]
         if _holds(C[j], rj, S, R, HOLD_TOL) if S[0] == 0.0 else _holds_arc(C[j], rj, S, R):
             return True
     return False

@@ -192,9 +192,7 @@ class AnalyticEngine:
         :func:`.heightmap.ipw_mesh`): its exact height at the nodes of a grid ``step`` mm apart
         (None: :data:`.heightmap.NODE_RADII` of the smallest tool radius met, or the stock's
         smaller side / 64 before any), as coarse as :data:`.heightmap.MAX_NODES` needs."""
-        s = self.stock
-        if not s:
-            raise InputError("the analytic engine has no stock yet: start() it before asking for its workpiece")
+        s = self._started("asking for its workpiece")
         if step is None:
             radii = self._tools.radii
             step = NODE_RADII * float(radii.min()) if radii.size else min(s[3] - s[0], s[4] - s[1]) / 64
@@ -265,9 +263,7 @@ class AnalyticEngine:
         """One map per CL segment from CL ``start_at`` on; the sweeps of the CLs before it are only
         indexed (their removed volume is not counted in ``removed_total``). After
         :meth:`load_checkpoint` they must be the checkpoint's sweeps (else :class:`CheckpointMismatch`)."""
-        if not self.stock:
-            raise InputError("the analytic engine has no stock yet: start() it (or load a checkpoint) "
-                             "before processing")
+        self._started("processing")
         for cl in self.cl_sequence(toolpath, default_tool):
             if cl.index < start_at:
                 self.index_only(cl)
@@ -306,11 +302,21 @@ class AnalyticEngine:
         if self._index is None:
             self._index = SweepIndex(4 * profile.radius)
         if self._index.size == 0 and self.round_bar:
-            # the bar's outside, cut before the first CL: 1 mm below its bottom, over its whole box
-            s, (cx, cy, r) = self.stock, self.round_bar
-            self._index.add(outside_row((cx, cy), r, s[2] - 1.0, self._tools.index_of(profile)),
-                            (s[0], s[1], s[3], s[4]), s[2] - 1.0, everywhere=True)
+            row, box = self._outside(self._tools.index_of(profile))
+            self._index.add(row, box, row[3], everywhere=True)
         return self._index
+
+    def _started(self, what: str) -> tuple[float, ...]:
+        """The stock's box; an :class:`InputError` naming ``what`` was asked before :meth:`start`."""
+        if not self.stock:
+            raise InputError(f"the analytic engine has no stock yet: start() it (or load a checkpoint) before {what}")
+        return self.stock
+
+    def _outside(self, tool: int) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+        """(the row, its box) of a round bar's outside, cut before the first CL: 1 mm below the bar's
+        bottom, over its whole box (``tool``: any table index)."""
+        s, (cx, cy, r) = self.stock, self.round_bar
+        return outside_row((cx, cy), r, s[2] - 1.0, tool), (s[0], s[1], s[3], s[4])
 
     def step(self, cl: CL) -> EngagementMap:
         """Process one CL segment (its map says ``engine="analytic"``); ``timings_ms`` holds each
@@ -473,25 +479,19 @@ class AnalyticEngine:
         ``stock_volume == material_volume() + removed_total`` to the integrals' tolerances (the
         volume's conservation); over a box holding CLs j..k's footprints, the box's material before
         CL j less that after CL k is those CLs' removed volume."""
-        s = self.stock
-        if not s:
-            raise InputError("the analytic engine has no stock yet: start() it before asking for its workpiece")
+        s = self._started("asking for its workpiece")
         box = box or (s[0], s[1], s[3], s[4])
         t = self._tools
         n = self._index.size if self._index else 0
         near = self._index.near(box) if n else np.zeros(0, dtype=np.int64)
         C, CB = (self._index.rows[near], self._index.boxes[near]) if n else (np.zeros((0, NCOL)), np.zeros((0, 4)))
-        # the wide flat tool's lower profile, one piece (f = 0 out to its radius), last in a copy of the tables
+        # the wide flat tool's lower profile, one piece (f = 0 out to its radius), after the run's tools
         reach = 0.5 * math.hypot(box[2] - box[0], box[3] - box[1]) + 1.0
         wide = LowerProfile(np.array([[LINE, 0.0, reach, 0.0, 0.0, 0.0]]), reach)
-        k = t.profiles.shape[0]
-        P = np.zeros((k + 1, max(t.profiles.shape[1], 1), 6))
-        P[:k], P[k, 0] = t.profiles, wide.pieces[0]
-        tables = (P, np.append(t.counts, 1), np.append(t.radii, reach))
+        tables, k = t.tables_with(wide), len(t.counts)
         if self.round_bar and n == 0:  # its outside is indexed at the first CL
-            cx, cy, r = self.round_bar
-            C = np.vstack([outside_row((cx, cy), r, s[2] - 1.0, k)[None, :], C])
-            CB = np.vstack([[s[0], s[1], s[3], s[4]], CB])
+            row, bar = self._outside(k)
+            C, CB = np.vstack([row[None, :], C]), np.vstack([bar, CB])
         cx, cy = 0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])
         row = line_row((cx, cy, s[2] - 2.0), (cx, cy, s[2] - 2.0), k)
         scale = float(t.radii.min()) if t.radii.size else reach

@@ -39,14 +39,23 @@ class ProfileTable:
             k = len(self._profiles)
             self._index[key] = k
             self._profiles.append(profile)
-            width = max(p.pieces.shape[0] for p in self._profiles)
-            table = np.zeros((len(self._profiles), width, 6))
-            for i, p in enumerate(self._profiles):
-                table[i, :p.pieces.shape[0]] = p.pieces
-            self.profiles = table
-            self.counts = np.array([p.pieces.shape[0] for p in self._profiles], dtype=np.int64)
-            self.radii = np.array([p.radius for p in self._profiles])
+            self.profiles, self.counts, self.radii = _tables(self._profiles)
         return k
+
+    def tables_with(self, profile: LowerProfile) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(profiles, counts, radii) of this table's profiles and then ``profile``, which is not
+        added: its index there is ``len(self.counts)``."""
+        return _tables([*self._profiles, profile])
+
+
+def _tables(profiles: list[LowerProfile]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The padded arrays of ``profiles``, in order (module docstring)."""
+    width = max(p.pieces.shape[0] for p in profiles)
+    table = np.zeros((len(profiles), width, 6))
+    for i, p in enumerate(profiles):
+        table[i, :p.pieces.shape[0]] = p.pieces
+    return (table, np.array([p.pieces.shape[0] for p in profiles], dtype=np.int64),
+            np.array([p.radius for p in profiles]))
 
 
 class SweepIndex:
