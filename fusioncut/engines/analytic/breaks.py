@@ -8,11 +8,13 @@ on its circle). Along a line x = const the curves' crossings part the inner inte
 (:func:`crossings_at_x`); across lines the curves' ends, extremes, centres and meetings part the
 outer one (:func:`x_breaks`, :func:`curve_meetings_x`).
 
-A curve needs to part nothing where the removed height is 0 on both sides of it whatever its sweep
-does (:func:`nothing_removed_near`): strictly outside the CL's footprint, or strictly inside a deeper
-line sweep's footprint (the finish allowance of a wall beside an earlier ramp's many tiny pieces
-meets dozens of such curves a cell). Nor does a point outside the cell: it moves no crossing within
-it.
+A curve needs to part nothing where the removed height is smooth on both sides of it whatever its
+sweep does (:func:`nothing_removed_near`): where it is 0, strictly outside the CL's footprint or
+strictly inside a deeper line sweep's footprint (the finish allowance of a wall beside an earlier
+ramp's many tiny pieces meets dozens of such curves a cell); and where the curve's sweep lies
+above another one there, so that it gives the material's top nowhere near (a raster's pass before
+last, whose footprint's edge runs under the last pass's scallop). Nor does a point outside the
+cell: it moves no crossing within it.
 """
 from __future__ import annotations
 
@@ -29,16 +31,22 @@ ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's s
 
 @njit(cache=True)
 def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
-    """Whether nothing is removed anywhere near (x, y) whatever earlier sweeps ``j`` and ``i`` do there:
-    the point lies strictly outside the CL's footprint, or strictly inside another line sweep's footprint
-    whose lower surface is below the CL's (or the bottom) by more than :data:`ZERO_MARGIN` (both
-    surfaces are continuous there, so that holds around it); the CL's closed-form floor
-    (:func:`.sweeps.sweep_floor`) decides first, its surface only where that does not. A crossing of
-    their curves there is no break point: the removed height is 0 either side of it."""
+    """Whether the removed height is smooth near (x, y) whatever earlier sweeps ``j`` and ``i`` do
+    there, so that a crossing of their curves there is no break point. True where the point lies
+    strictly outside the CL's footprint, or strictly inside another line sweep's footprint whose
+    lower surface is below, by more than :data:`ZERO_MARGIN`, the CL's (or the bottom: nothing is
+    removed around) or both ``j``'s and ``i``'s closed-form floors (:func:`.sweeps.sweep_floor`,
+    their footprints widened by the margin: neither gives the least lower surface around, and where
+    they jump or bend the least one does not). All those surfaces are continuous there, so each
+    inequality holds around the point. The CL's closed-form floor decides first, its surface only
+    where that does not."""
     own = sweep_floor(S, P, R, x, y, 0.0)  # the CL's lower surface is at least this; inf outside it
     if own == math.inf:
         return True
-    floor = max(own, zb) - ZERO_MARGIN
+    tj, ti = int(C[j, 12]), int(C[i, 12])
+    hidden = min(sweep_floor(C[j], PP[tj, :NPC[tj]], RR[tj], x, y, ZERO_MARGIN),
+                 sweep_floor(C[i], PP[ti, :NPC[ti]], RR[ti], x, y, ZERO_MARGIN)) - ZERO_MARGIN
+    bound = max(max(own, zb) - ZERO_MARGIN, hidden)
     exact = math.nan  # the CL's lower surface itself, found once a sweep needs it
     for k in range(C.shape[0]):
         if k == j or k == i or C[k, 0] != 0.0:
@@ -49,7 +57,7 @@ def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
         if point_segment_distance(x, y, C[k, 1], C[k, 2], C[k, 4], C[k, 5]) >= RR[t] - ZERO_MARGIN:
             continue
         h = sweep_lower(C[k], PP[t, :NPC[t]], RR[t], x, y, 0.0)
-        if h < floor:
+        if h < bound:
             return True
         if math.isnan(exact):
             exact = max(sweep_lower(S, P, R, x, y, 0.0), zb) - ZERO_MARGIN

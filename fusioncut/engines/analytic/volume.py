@@ -56,6 +56,7 @@ MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this
 # retraced pass, would show dips of round-off)
 KINK_TOL = 1e-12  # mm: a kink's place along a line
 X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
+MAX_CHANGES = 8  # changes of state looked for between two probes, one after the other
 _PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
 
 # Gauss-Kronrod 15-point nodes (on [-1, 1]) and weights; the Gauss 7-point weights at the odd nodes
@@ -247,9 +248,9 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     between them whether anything may be removed there). A stretch :func:`_nothing_removed` proves
     empty is kept whole; in the others the state and its margin (:func:`_probe`) are probed at even
     samples (:data:`N_PROBE` + 1 at least, :data:`PROBE_STEP` tool radii apart at most), each change
-    located (:func:`_kink`), and each probe in the same state as both its neighbours with a smaller
-    margin, at most half the larger of theirs, searched for another state (:func:`_dip`), whose
-    region's edges are kinks too (a margin convex between the probes stays above twice the probe's
+    located (:func:`_kink`; several between two probes one after the other), and each probe in the
+    same state as both its neighbours with a smaller margin, at most half the larger of theirs,
+    searched for another state (:func:`_dip`), whose region's edges are kinks too (a margin convex between the probes stays above twice the probe's
     less the larger neighbour's: a dip shallower than that cannot reach another state). A kink
     left inside a stretch costs the adaptive rule a split at it (:func:`inner_integral`).
 
@@ -277,24 +278,28 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             for i in range(n + 1):
                 ys[i] = a + KINK_TOL if i == 0 else (a + (b - a) * i / n if i < n else b - KINK_TOL)
                 sts[i], gaps[i] = _probe(x, ys[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
-            kinks = np.empty(2 * n)
-            nk = 0
+            kinks = [0.0]  # typed for numba; the kinks are kinks[1:]
             for i in range(1, n + 1):
-                if sts[i] != sts[i - 1]:
-                    kinks[nk] = _kink(x, ys[i - 1], ys[i], sts[i - 1], sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
-                    nk += 1
+                if sts[i] != sts[i - 1]:  # each change between the two probes, one after the other
+                    lo, s0 = ys[i - 1], sts[i - 1]
+                    for _ in range(MAX_CHANGES):
+                        y = _kink(x, lo, ys[i], s0, sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                        kinks.append(y)
+                        lo = min(y + KINK_TOL, ys[i])
+                        s0 = _state(x, lo, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                        if s0 == sts[i]:
+                            break
                 elif (i < n and sts[i + 1] == sts[i] and MARGIN_TOL < gaps[i] < gaps[i - 1]
                       and gaps[i] <= gaps[i + 1] and 2.0 * gaps[i] <= max(gaps[i - 1], gaps[i + 1])):
                     y = _dip(x, ys[i - 1], ys[i], ys[i + 1], gaps[i], sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
                     if not math.isnan(y):  # a region the probes stepped over: its two edges
                         s1 = _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-                        kinks[nk] = _kink(x, ys[i - 1], y, sts[i], s1, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-                        kinks[nk + 1] = _kink(x, y, ys[i + 1], s1, sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
-                        nk += 2
-            for y in np.sort(kinks[:nk]):
+                        kinks.append(_kink(x, ys[i - 1], y, sts[i], s1, S, P, R, C, CB, PP, NPC, RR, zb, zt))
+                        kinks.append(_kink(x, y, ys[i + 1], s1, sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt))
+            for y in np.sort(np.array(kinks[1:])):
                 out.append(y)
                 live.append(True)
-            uniform = sts[0] if nk == 0 else -1
+            uniform = sts[0] if len(kinks) == 1 else -1
         owner = int(owners[p])
         if uniform > 0 and uniform == last and owner > 0 and owner != (uniform - 3) // 2 + 1:
             out[-1] = b  # the last stretch goes on through this one
@@ -533,7 +538,9 @@ def _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, 
 def _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """``xs`` with the places added where the lines' :func:`_signature` changes: probed at
     :data:`N_PROBE` + 1 even lines between break points, bisected to :data:`X_KINK_TOL` mm, so that
-    the outer integral's parts end where its integrand is not smooth."""
+    the outer integral's parts end where its integrand is not smooth. Between two probes the
+    changes are found one after the other (up to :data:`MAX_CHANGES`): a bisection finds one, and
+    the line just past it starts the search for the next."""
     out = [xs[0]]
     for p in range(xs.shape[0] - 1):
         a, b = xs[p], xs[p + 1]
@@ -543,7 +550,9 @@ def _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
             for i in range(1, N_PROBE + 1):
                 x = a + (b - a) * i / N_PROBE if i < N_PROBE else b - X_KINK_TOL
                 sig = _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-                if sig != prev:
+                for _ in range(MAX_CHANGES):  # each change between the two lines, one after the other
+                    if sig == prev:
+                        break
                     lo, hi = prev_x, x
                     while hi - lo > X_KINK_TOL:
                         m = 0.5 * (lo + hi)
@@ -552,6 +561,7 @@ def _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
                         else:
                             hi = m
                     out.append(0.5 * (lo + hi))
+                    prev, prev_x = _signature(hi, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt), hi
                 prev, prev_x = sig, x
         out.append(b)
     return np.array(out)

@@ -38,6 +38,21 @@ def test_a_point_isnothing_removed_near_only_outside_the_cl_or_inside_a_deeper_s
     assert not nothing_removed_near(1, 1, 5.0, 1.0, *args)  # in the CL, beside the deep pass
 
 
+def test_the_edge_of_a_pass_under_a_lower_one_is_no_break_point():
+    """A raster: the CL 2 mm deep along y = 0, the last pass 1.5 mm deep along y = -2, the one before
+    1 mm deep along y = -4. The older pass's edge (y = -1) runs inside the last pass, whose surface is
+    below the older one's there: it gives the material's top nowhere near, and its edge parts
+    nothing, though the CL removes material there. The last pass's own edge (y = 1) parts the line."""
+    own = line_row((-20, 0, -2), (20, 0, -2), 0)
+    older, last = line_row((-20, -4, -1), (20, -4, -1), 0), line_row((-20, -2, -1.5), (20, -2, -1.5), 0)
+    C, CB, circles, segments = _case(own, older, last)
+    args = (own, FLAT.pieces, FLAT.radius, C, CB, PP, NPC, RR, -10.0)
+    assert nothing_removed_near(0, 0, 0.0, -1.0, *args)  # the older pass's edge, under the last pass
+    assert not nothing_removed_near(1, 1, 0.0, 1.0, *args)  # the last pass's edge: it gives the top there
+    pts, owners = crossings_at_x(0.0, circles, segments, -10.0, 10.0, *args)
+    assert pts.tolist() == [-10.0, -3.0, 1.0, 3.0, 10.0] and owners.tolist() == [-1.0, 0.0, 2.0, 0.0, -1.0]
+
+
 def test_crossings_inside_a_deeper_sweep_are_no_break_points():
     """A 1 mm deep pass along the CL's path (its footprint's edges at y = +-3, as the CL's), and a
     5 mm deep pass along y: along x = 1, inside the deep pass, nothing is removed around the shallow
