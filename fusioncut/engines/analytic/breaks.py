@@ -10,7 +10,7 @@ outer one (:func:`x_breaks`, :func:`curve_meetings_x`).
 
 A curve needs to part nothing where the removed height is smooth on both sides of it whatever its
 sweep does (:func:`nothing_removed_near`): where it is 0, strictly outside the CL's footprint or
-strictly inside a deeper line sweep's footprint (the finish allowance of a wall beside an earlier
+strictly inside a deeper sweep's footprint (the finish allowance of a wall beside an earlier
 ramp's many tiny pieces meets dozens of such curves a cell); and where the curve's sweep lies
 above another one there, so that it gives the material's top nowhere near (a raster's pass before
 last, whose footprint's edge runs under the last pass's scallop). Nor does a point outside the
@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.sweeps import OUTSIDE, point_segment_distance, sweep_floor, sweep_lower
+from fusioncut.engines.analytic.sweeps import OUTSIDE, sweep_floor, sweep_lower
 
 ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
 # for it to be no break point (nothing_removed_near)
@@ -33,7 +33,7 @@ ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's s
 def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
     """Whether the removed height is smooth near (x, y) whatever earlier sweeps ``j`` and ``i`` do
     there, so that a crossing of their curves there is no break point. True where the point lies
-    strictly outside the CL's footprint, or strictly inside another line sweep's footprint whose
+    strictly outside the CL's footprint, or strictly inside another sweep's footprint whose
     lower surface is below, by more than :data:`ZERO_MARGIN`, the CL's (or the bottom: nothing is
     removed around) or both ``j``'s and ``i``'s closed-form floors (:func:`.sweeps.sweep_floor`,
     their footprints widened by the margin: neither gives the least lower surface around, and where
@@ -49,13 +49,13 @@ def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
     bound = max(max(own, zb) - ZERO_MARGIN, hidden)
     exact = math.nan  # the CL's lower surface itself, found once a sweep needs it
     for k in range(C.shape[0]):
-        if k == j or k == i or C[k, 0] != 0.0:
+        if k == j or k == i or C[k, 0] == OUTSIDE:
             continue
         if x < CB[k, 0] or x > CB[k, 2] or y < CB[k, 1] or y > CB[k, 3]:
             continue
         t = int(C[k, 12])
-        if point_segment_distance(x, y, C[k, 1], C[k, 2], C[k, 4], C[k, 5]) >= RR[t] - ZERO_MARGIN:
-            continue
+        if sweep_floor(C[k], PP[t, :NPC[t]], RR[t], x, y, -ZERO_MARGIN) == math.inf:
+            continue  # not strictly inside its footprint
         h = sweep_lower(C[k], PP[t, :NPC[t]], RR[t], x, y, 0.0)
         if h < bound:
             return True
