@@ -27,6 +27,8 @@ from fusioncut.engines.analytic.sweeps import OUTSIDE, sweep_floor, sweep_lower
 
 ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
 # for it to be no break point (nothing_removed_near)
+MERGE_TOL = 1e-12  # mm: x break points this close are one; a kink moved this far costs the outer integral
+# no more than this times the inner integral's jump there
 
 
 @njit(cache=True)
@@ -207,7 +209,9 @@ def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, z
     removed height may bend. One outside the rectangle moves no crossing within it; one where nothing
     is removed around it whatever the curves' sweeps do (:func:`nothing_removed_near`) bends nothing.
     A segment along x = const (a line's sweep along y) crosses no line: its x is a break wherever it
-    meets the rectangle."""
+    meets the rectangle. Points within :data:`MERGE_TOL` of the last one kept are one (two curves
+    through one point, in round-off apart: a part between them would cost the outer rule all its
+    nodes for nothing); lo and hi stay."""
     cand = [(lo, ylo, -1.0, -1.0), (hi, ylo, -1.0, -1.0)]
     for i in range(circles.shape[0]):
         cx, cy, r, o = circles[i, 0], circles[i, 1], circles[i, 2], circles[i, 3]
@@ -233,4 +237,13 @@ def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, z
                                                          zb):
             continue
         xs.append(x)
-    return np.unique(np.array(xs))
+    u = np.unique(np.array(xs))
+    keep = [u[0]]  # lo
+    for x in u[1:-1]:
+        if x - keep[-1] > MERGE_TOL:
+            keep.append(x)
+    if len(keep) > 1 and u[-1] - keep[-1] <= MERGE_TOL:
+        keep[-1] = u[-1]
+    else:
+        keep.append(u[-1])  # hi
+    return np.array(keep)

@@ -169,17 +169,35 @@ def _dip(x, a, m, b, fm, s0, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 
 @njit(cache=True)
+def _signed_height(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """min(h, top) - max(L, bottom) at (x, y), mm: the removed height where > 0, how far the CL's
+    surface is above the material's top where <= 0 (inf outside the CL's footprint, -inf there).
+    Continuous where ``L`` and every earlier lower surface are (within a stretch between break
+    points), though it bends where the sweep giving ``h`` changes."""
+    low = max(sweep_lower(S, P, R, x, y, 0.0), zb)
+    high = zt
+    for j in range(C.shape[0]):
+        if x < CB[j, 0] or x > CB[j, 2] or y < CB[j, 1] or y > CB[j, 3]:
+            continue
+        if C[j, 3] >= high and C[j, 6] >= high:
+            continue
+        k = int(C[j, 12])
+        if sweep_floor(C[j], PP[k, :NPC[k]], RR[k], x, y, 0.0) >= high:
+            continue
+        high = min(high, sweep_lower(C[j], PP[k, :NPC[k]], RR[k], x, y, 0.0))
+    return high - low
+
+
+@njit(cache=True)
 def _gap(x, y, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """Where the state changes from ``s0`` to ``s1`` (:func:`_state`), the two surfaces that cross
     there: their difference at (x, y), mm, of one sign on ``s0``'s side and the other on ``s1``'s.
-    Into or out of nothing removed: min(h, top) - max(L, bottom) with ``h`` the state's own cause;
-    another sweep gives ``h``: the two causes' heights (the top for -1); ``L`` passes the bottom:
-    ``L`` - bottom. NaN where the change is of another kind."""
+    Into or out of nothing removed: the removed height signed, min(h, top) - max(L, bottom)
+    (:func:`_signed_height`; the sweep that leaves nothing on one side need not be the one giving
+    ``h`` on the other); another sweep gives ``h``: the two causes' heights (the top for -1); ``L``
+    passes the bottom: ``L`` - bottom. NaN where the change is of another kind."""
     if s0 == 0 or s1 == 0:
-        c = (max(s0, s1) - 3) // 2
-        k = int(C[c, 12]) if c >= 0 else 0
-        h = sweep_lower(C[c], PP[k, :NPC[k]], RR[k], x, y, 0.0) if c >= 0 else zt
-        return min(h, zt) - max(sweep_lower(S, P, R, x, y, 0.0), zb)
+        return _signed_height(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     c0, c1 = (s0 - 3) // 2, (s1 - 3) // 2
     if c0 != c1 and (s0 - 3) % 2 == (s1 - 3) % 2:
         h0, h1 = zt, zt
@@ -200,8 +218,10 @@ def _kink(x, lo, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """The place (mm along the line at ``x``, to :data:`KINK_TOL`) in [lo, hi] where the state
     changes from ``s0`` (at ``lo``) to ``s1`` (at ``hi``). The two surfaces that cross there
     (:func:`_gap`) are smooth, so their difference's root is found by Illinois steps (every fourth a
-    bisection); the root counts where the states just beside it are ``s0`` and ``s1``. Else (a third
-    surface in between, a change of two kinds at once) the states are bisected."""
+    bisection); the root counts where the state just before it is ``s0`` and the one just after it
+    is not (a third state may follow ``s0`` there, on the way to ``s1``: the caller looks on from
+    there). Else (a change of two kinds at once, a surface touching another) the states are
+    bisected."""
     g0 = _gap(x, lo, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     g1 = _gap(x, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     if math.isfinite(g0) and math.isfinite(g1) and g0 * g1 < 0.0:
@@ -231,7 +251,7 @@ def _kink(x, lo, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
                 side = -1
         y = 0.5 * (a + b)
         if (b - a <= KINK_TOL and _state(x, max(y - KINK_TOL, lo), S, P, R, C, CB, PP, NPC, RR, zb, zt) == s0
-                and _state(x, min(y + KINK_TOL, hi), S, P, R, C, CB, PP, NPC, RR, zb, zt) == s1):
+                and _state(x, min(y + KINK_TOL, hi), S, P, R, C, CB, PP, NPC, RR, zb, zt) != s0):
             return y
     while hi - lo > KINK_TOL:
         m = 0.5 * (lo + hi)
