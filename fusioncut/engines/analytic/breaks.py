@@ -33,20 +33,21 @@ MERGE_TOL = 1e-12  # mm: x break points this close are one; a kink moved this fa
 
 @njit(cache=True)
 def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
-    """Whether the removed height is smooth near (x, y) whatever earlier sweeps ``j`` and ``i`` do
-    there, so that a crossing of their curves there is no break point. True where the point lies
-    strictly outside the CL's footprint, or strictly inside another sweep's footprint whose
-    lower surface is below, by more than :data:`ZERO_MARGIN`, the CL's (or the bottom: nothing is
-    removed around) or both ``j``'s and ``i``'s closed-form floors (:func:`.sweeps.sweep_floor`,
-    their footprints widened by the margin: neither gives the least lower surface around, and where
-    they jump or bend the least one does not). All those surfaces are continuous there, so each
-    inequality holds around the point. The CL's closed-form floor decides first, its surface only
-    where that does not."""
+    """Whether a meeting of earlier sweeps ``j``'s and ``i``'s curves at (x, y) (``j`` = ``i``: a
+    curve's own end or extreme) parts nothing: True where the point lies strictly outside the CL's
+    footprint, or strictly inside another sweep's footprint whose lower surface is below, by more
+    than :data:`ZERO_MARGIN`, the CL's (or the bottom: nothing is removed around) or ``j``'s or
+    ``i``'s closed-form floor (:func:`.sweeps.sweep_floor`, its footprint widened by the margin:
+    that sweep gives the least lower surface nowhere around, so where it jumps or bends the least
+    one does not, and its curve is no break point there either: the other curve's crossings keep
+    their order through the meeting). All those surfaces are continuous there, so each inequality
+    holds around the point. The CL's closed-form floor decides first, its surface only where that
+    does not."""
     own = sweep_floor(S, P, R, x, y, 0.0)  # the CL's lower surface is at least this; inf outside it
     if own == math.inf:
         return True
     tj, ti = int(C[j, 12]), int(C[i, 12])
-    hidden = min(sweep_floor(C[j], PP[tj, :NPC[tj]], RR[tj], x, y, ZERO_MARGIN),
+    hidden = max(sweep_floor(C[j], PP[tj, :NPC[tj]], RR[tj], x, y, ZERO_MARGIN),
                  sweep_floor(C[i], PP[ti, :NPC[ti]], RR[ti], x, y, ZERO_MARGIN)) - ZERO_MARGIN
     bound = max(max(own, zb) - ZERO_MARGIN, hidden)
     exact = math.nan  # the CL's lower surface itself, found once a sweep needs it
