@@ -57,6 +57,8 @@ MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this
 KINK_TOL = 1e-12  # mm: a kink's place along a line
 X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
 MAX_CHANGES = 8  # changes of state looked for between two probes, one after the other
+CLUSTER = 1e-5  # of the probes' spacing: the next change is looked for this far past the last one (changes
+# closer together, where many curves meet at a joint, are one: each would cost the rule a part)
 _PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
 
 # Gauss-Kronrod 15-point nodes (on [-1, 1]) and weights; the Gauss 7-point weights at the odd nodes
@@ -268,9 +270,10 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     between them whether anything may be removed there). A stretch :func:`_nothing_removed` proves
     empty is kept whole; in the others the state and its margin (:func:`_probe`) are probed at even
     samples (:data:`N_PROBE` + 1 at least, :data:`PROBE_STEP` tool radii apart at most), each change
-    located (:func:`_kink`; several between two probes one after the other), and each probe in the
-    same state as both its neighbours with a smaller margin, at most half the larger of theirs,
-    searched for another state (:func:`_dip`), whose region's edges are kinks too (a margin convex between the probes stays above twice the probe's
+    located (:func:`_kink`; several between two probes one after the other, :data:`CLUSTER` of
+    their spacing apart at least), and each probe in the same state as both its neighbours with a
+    smaller margin, at most half the larger of theirs, searched for another state (:func:`_dip`),
+    whose region's edges are kinks too (a margin convex between the probes stays above twice the probe's
     less the larger neighbour's: a dip shallower than that cannot reach another state). A kink
     left inside a stretch costs the adaptive rule a split at it (:func:`inner_integral`).
 
@@ -305,7 +308,7 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
                     for _ in range(MAX_CHANGES):
                         y = _kink(x, lo, ys[i], s0, sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
                         kinks.append(y)
-                        lo = min(y + KINK_TOL, ys[i])
+                        lo = min(y + max(KINK_TOL, CLUSTER * (ys[i] - ys[i - 1])), ys[i])
                         s0 = _state(x, lo, S, P, R, C, CB, PP, NPC, RR, zb, zt)
                         if s0 == sts[i]:
                             break
@@ -560,7 +563,7 @@ def _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
     :data:`N_PROBE` + 1 even lines between break points, bisected to :data:`X_KINK_TOL` mm, so that
     the outer integral's parts end where its integrand is not smooth. Between two probes the
     changes are found one after the other (up to :data:`MAX_CHANGES`): a bisection finds one, and
-    the line just past it starts the search for the next."""
+    the line :data:`CLUSTER` of the probes' spacing past it starts the search for the next."""
     out = [xs[0]]
     for p in range(xs.shape[0] - 1):
         a, b = xs[p], xs[p + 1]
@@ -581,7 +584,8 @@ def _with_x_kinks(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
                         else:
                             hi = m
                     out.append(0.5 * (lo + hi))
-                    prev, prev_x = _signature(hi, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt), hi
+                    prev_x = min(hi + CLUSTER * (b - a) / N_PROBE, x)
+                    prev = _signature(prev_x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt)
                 prev, prev_x = sig, x
         out.append(b)
     return np.array(out)
