@@ -56,7 +56,8 @@ MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this
 # retraced pass, would show dips of round-off)
 KINK_TOL = 1e-12  # mm: a kink's place along a line
 X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
-MAX_CHANGES = 8  # changes of state looked for between two probes, one after the other
+MAX_CHANGES = 2  # changes of state located between two probes, one after the other; more are left to the adaptive
+# rule (each costs the rule a part; a busy cell of a wall program holds up to 8 between two probes)
 CLUSTER = 1e-5  # of the probes' spacing: the next change is looked for this far past the last one (changes
 # closer together, where many curves meet at a joint, are one: each would cost the rule a part)
 _PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
