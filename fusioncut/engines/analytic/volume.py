@@ -122,13 +122,16 @@ def _code(v, cause, own, zb):
 @njit(cache=True)
 def _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """(:func:`_state` at (x, y); its margin there, mm: how far the surfaces that decide the state are
-    from deciding another one). Nothing removed: max(L, bottom) - min(h, top), inf outside the CL's
-    footprint. Something removed: the least of the removed height, the gap from ``h`` to the next
-    lowest earlier sweep (or the top) and ``|L - bottom|``. A narrow region of another state between
-    two probes sits in a dip of the margin (:func:`_dip`)."""
+    from deciding another one; the removed height signed, min(h, top) - max(L, bottom), mm). The
+    margin: nothing removed, max(L, bottom) - min(h, top), inf outside the CL's footprint; something
+    removed, the least of the removed height, the gap from ``h`` to the next lowest earlier sweep (or
+    the top) and ``|L - bottom|``. A narrow region of another state between two probes sits in a dip
+    of the margin (:func:`_dip`). The signed height is continuous where ``L`` and every earlier lower
+    surface are (within a stretch between break points), though it bends where the sweep giving ``h``
+    changes; -inf outside the CL's footprint."""
     own = sweep_lower(S, P, R, x, y, 0.0)
     if own == math.inf:
-        return 0, math.inf
+        return 0, math.inf, -math.inf
     low = max(own, zb)
     h1, h2 = zt, math.inf  # the two least lower surfaces, the top counting as one
     cause = -1
@@ -147,8 +150,8 @@ def _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
         elif h < h2:
             h2 = h
     if h1 <= low:
-        return 0, low - h1
-    return _code(h1 - low, cause, own, zb), min(h1 - low, h2 - h1, abs(own - zb))
+        return 0, low - h1, h1 - low
+    return _code(h1 - low, cause, own, zb), min(h1 - low, h2 - h1, abs(own - zb)), h1 - low
 
 
 @njit(cache=True)
@@ -164,7 +167,7 @@ def _dip(x, a, m, b, fm, s0, S, P, R, C, CB, PP, NPC, RR, zb, zt):
         u = brent_next(st)
         if math.isnan(u):
             break
-        state, fu = _probe(x, u, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        state, fu, _ = _probe(x, u, S, P, R, C, CB, PP, NPC, RR, zb, zt)
         if state != s0:
             return u
         brent_take(st, u, fu)
@@ -172,35 +175,15 @@ def _dip(x, a, m, b, fm, s0, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 
 @njit(cache=True)
-def _signed_height(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
-    """min(h, top) - max(L, bottom) at (x, y), mm: the removed height where > 0, how far the CL's
-    surface is above the material's top where <= 0 (inf outside the CL's footprint, -inf there).
-    Continuous where ``L`` and every earlier lower surface are (within a stretch between break
-    points), though it bends where the sweep giving ``h`` changes."""
-    low = max(sweep_lower(S, P, R, x, y, 0.0), zb)
-    high = zt
-    for j in range(C.shape[0]):
-        if x < CB[j, 0] or x > CB[j, 2] or y < CB[j, 1] or y > CB[j, 3]:
-            continue
-        if C[j, 3] >= high and C[j, 6] >= high:
-            continue
-        k = int(C[j, 12])
-        if sweep_floor(C[j], PP[k, :NPC[k]], RR[k], x, y, 0.0) >= high:
-            continue
-        high = min(high, sweep_lower(C[j], PP[k, :NPC[k]], RR[k], x, y, 0.0))
-    return high - low
-
-
-@njit(cache=True)
 def _gap(x, y, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """Where the state changes from ``s0`` to ``s1`` (:func:`_state`), the two surfaces that cross
     there: their difference at (x, y), mm, of one sign on ``s0``'s side and the other on ``s1``'s.
     Into or out of nothing removed: the removed height signed, min(h, top) - max(L, bottom)
-    (:func:`_signed_height`; the sweep that leaves nothing on one side need not be the one giving
+    (:func:`_probe`'s; the sweep that leaves nothing on one side need not be the one giving
     ``h`` on the other); another sweep gives ``h``: the two causes' heights (the top for -1); ``L``
     passes the bottom: ``L`` - bottom. NaN where the change is of another kind."""
     if s0 == 0 or s1 == 0:
-        return _signed_height(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        return _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)[2]
     c0, c1 = (s0 - 3) // 2, (s1 - 3) // 2
     if c0 != c1 and (s0 - 3) % 2 == (s1 - 3) % 2:
         h0, h1 = zt, zt
@@ -301,7 +284,7 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             gaps = np.empty(n + 1)
             for i in range(n + 1):
                 ys[i] = a + KINK_TOL if i == 0 else (a + (b - a) * i / n if i < n else b - KINK_TOL)
-                sts[i], gaps[i] = _probe(x, ys[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                sts[i], gaps[i], _ = _probe(x, ys[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
             kinks = [0.0]  # typed for numba; the kinks are kinks[1:]
             for i in range(1, n + 1):
                 if sts[i] != sts[i - 1]:  # each change between the two probes, one after the other
