@@ -57,7 +57,7 @@ MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this
 KINK_TOL = 1e-12  # mm: a kink's place along a line
 X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
 MAX_CHANGES = 2  # changes of state located between two probes, one after the other; more are left to the adaptive
-# rule (each costs the rule a part; a busy cell of a wall program holds up to 8 between two probes)
+# rule (each located one costs a part of its own, more than a kink of little weight costs inside one)
 CLUSTER = 1e-5  # of the probes' spacing: the next change is looked for this far past the last one (changes
 # closer together, where many curves meet at a joint, are one: each would cost the rule a part)
 _PANELS = 2000  # parts one adaptive integral may hold (each of the inner ones and the outer one)
@@ -201,8 +201,8 @@ def _gap(x, y, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 @njit(cache=True)
 def _kink(x, lo, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
-    """The place (mm along the line at ``x``, to :data:`KINK_TOL`) in [lo, hi] where the state
-    changes from ``s0`` (at ``lo``) to ``s1`` (at ``hi``). The two surfaces that cross there
+    """A place (mm along the line at ``x``, to :data:`KINK_TOL`) in [lo, hi] where the state
+    changes from ``s0`` (at ``lo``), on the way to ``s1`` (at ``hi``). The two surfaces that cross there
     (:func:`_gap`) are smooth, so their difference's root is found by Illinois steps (every fourth a
     bisection); the root counts where the state just before it is ``s0`` and the one just after it
     is not (a third state may follow ``s0`` there, on the way to ``s1``: the caller looks on from

@@ -18,8 +18,7 @@ def test_each_cell_of_a_ball_finishing_pass_is_within_its_tolerance(monkeypatch)
     the pass before last and the last meet): each cell's volume at the engine's tolerance against the
     same integral at 1e-15 mm per mm² and 1e-13 of itself. The engine asks of each cell max(volume_tol
     x its area, volume_rel x its volume), a tenth of the 1e-7 the volume must keep, because that bound
-    is QUADPACK's error estimate, not a proof: a kink no probe located can make a cell end beyond it
-    (1.5 times here; 1.9 times at c0b7b14, which located one change of state between two probes).
+    is QUADPACK's error estimate, not a proof: a kink no probe located can make a cell end beyond it.
     Each cell must keep the 1e-7 (ten times its own bound); a crescent stepped over (5e-6 mm³) would
     not."""
     import real_programs
