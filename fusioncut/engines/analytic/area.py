@@ -20,9 +20,15 @@ to another's, or leaves the front's limit). ``width(z)`` gives ``W`` with the **
 arcs: their number and the causes of their ends. The heights where ``W`` jumps or bends that are
 known beforehand (``breaks``: the stock's top, an earlier level sweep's floor and the heights where
 its profile's pieces meet) start the integral's parts; a part whose rule nodes see more than one
-shape is split where the shape changes, found by bisection to :data:`MIN_PART` where the number of
-arcs changes (a jump) and to :data:`KINK_PART` of the part where only the causes do (a kink: a
-split that far off costs the rule an error of the order of its square).
+shape is split where the shape changes: between each two neighbouring nodes that differ, the
+changes are found one after the other (an end crossing the joints of an earlier pass's short moves
+changes its cause many times between two nodes), each by bisection to :data:`MIN_PART` where the
+number of arcs changes (a jump) and to :data:`KINK_PART` of the narrower part beside it where only
+the causes do (a kink: a split that far off costs the rule an error of the order of its square).
+A part narrower than :data:`KINK_SPAN` of its piece is not split at kinks, and a change within
+:data:`CLUSTER` of the last is not one of its own: where two causes' surfaces meet tangentially (a
+ball's equator, where its sweep's lower surface turns into its wall) the classification of an end
+flickers between them, and W is smooth there.
 Within the parts it is adaptive Gauss-Kronrod (7, 15) with a global error budget
 (QUADPACK's QAG and its error estimate from the two rules and the integrand's spread about its
 mean, as :mod:`.volume`): the part with the largest estimate is halved until the
@@ -41,9 +47,12 @@ import numpy as np
 from fusioncut.engines.analytic.volume import _WG, _WK, _XK, _error
 
 MIN_PART = 1e-9  # along the generating curve (mm, or rad of a corner's angle)
-KINK_PART = 1e-6  # the place of a kink of W (a change of what bounds an arc's end), in parts of its part's
-# length: well inside the rule's nodes nearest the part's ends (5e-5 of it), so that the parts either side
+KINK_PART = 1e-5  # the place of a kink of W (a change of what bounds an arc's end), in parts of the narrower
+# part beside it: inside the rule's nodes nearest a part's ends (5.5e-5 of it), so that the parts either side
 # do not see the change again
+KINK_SPAN = 1e-5  # parts narrower than this share of their piece are not split at kinks, only at jumps
+MAX_CHANGES = 8  # changes of shape located one after the other between two of a rule's nodes
+CLUSTER = 1e-5  # ... each at least this share of those nodes' spacing past the last
 MAX_EVALS = 1500  # evaluations of W(z) one CL's area may take: a bound, not the usual stop (the error estimate)
 _LINE = 0.0
 Shape = tuple[int, tuple[float, ...]]  # the engaged arcs' number and their ends' causes (engine._width)
@@ -118,21 +127,45 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
         w, shape = width(z)
         return d * ds * w, shape
 
-    def event(p: SurfacePiece, a: float, b: float, sa: Shape, sb: Shape, kink: float) -> float:
-        """The parameter in (a, b) where the shape changes from ``sa`` (at ``a``; ``sb`` at ``b``): to
-        MIN_PART where the number of arcs changes, to ``kink`` where only their ends' causes do."""
-        while b - a > (MIN_PART if sa[0] != sb[0] else kink):
-            m = 0.5 * (a + b)
+    def narrow(p: SurfacePiece, lo: float, hi: float, s_lo: Shape, s_hi: Shape, tol: float, kinks: bool
+               ) -> tuple[float, float, Shape]:
+        """The bracket [lo, hi] of a change of shape from ``s_lo`` bisected to ``tol`` (to MIN_PART
+        where the number of arcs changes), and the shape at its new ``hi``; where ``kinks`` is False only
+        the number of arcs counts."""
+        def key(s: Shape) -> Shape | int:
+            return s if kinks else s[0]
+
+        while hi - lo > (MIN_PART if s_lo[0] != s_hi[0] else tol):
+            m = 0.5 * (lo + hi)
             sm = at(p, m)[1]
-            if sm == sa:
-                a = m
+            if key(sm) == key(s_lo):
+                lo = m
             else:
-                b, sb = m, sm
-        return 0.5 * (a + b)
+                hi, s_hi = m, sm
+        return lo, hi, s_hi
+
+    def events(p: SurfacePiece, a: float, b: float, sa: Shape, sb: Shape, tol: float, kinks: bool
+               ) -> list[tuple[float, float, Shape, Shape]]:
+        """Brackets (lo, hi, shape at lo, shape at hi) no wider than ``tol`` of the changes of shape on
+        the way from ``sa`` (at ``a``) to ``sb`` (at ``b``), found one after the other, each at least
+        :data:`CLUSTER` of ``b - a`` past the last (at most :data:`MAX_CHANGES`, none once
+        :data:`MAX_EVALS` are spent); where ``kinks`` is False only changes of the number of arcs."""
+        out: list[tuple[float, float, Shape, Shape]] = []
+        gap = CLUSTER * (b - a)
+        while len(out) < MAX_CHANGES and evals < MAX_EVALS and (sa != sb if kinks else sa[0] != sb[0]):
+            lo, hi, s_hi = narrow(p, a, b, sa, sb, tol, kinks)
+            out.append((lo, hi, sa, s_hi))
+            # the next change lies between here and b; one closer than the gap is a flicker of the
+            # classification (an end where two causes' surfaces meet tangentially), not a change of its own
+            a = min(hi + gap, b)
+            if a >= b:
+                break
+            sa = s_hi if a == hi else at(p, a)[1]
+        return out
 
     def add(p: SurfacePiece, a: float, b: float) -> None:
-        """Rule on [a, b], or, where the arcs' shape differs between its nodes, the parts either side
-        of the first change."""
+        """Rule on [a, b], or, where the arcs' shape differs between its nodes, the parts between the
+        changes."""
         if b - a <= MIN_PART:
             return
         n = len(_NODES)
@@ -145,12 +178,21 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
             f, shapes[i] = at(p, us[i])
             fk[i] = f * 3.0 * (b - a) * t * (1.0 - t)
         order = np.argsort(us)
-        change = [k for k in range(n - 1) if shapes[order[k]] != shapes[order[k + 1]]]
+        kinks = b - a > KINK_SPAN * (p.u1 - p.u0)
+        change = [k for k in range(n - 1) if shapes[order[k]] != shapes[order[k + 1]]
+                  and (kinks or shapes[order[k]][0] != shapes[order[k + 1]][0])]
         if change and evals < MAX_EVALS:
-            i, j = order[change[0]], order[change[0] + 1]
-            c = event(p, us[i], us[j], shapes[i], shapes[j], max(KINK_PART * (b - a), MIN_PART))
-            add(p, a, c)
-            add(p, c, b)
+            found = [e for k in change for e in events(p, us[order[k]], us[order[k + 1]], shapes[order[k]],
+                                                       shapes[order[k + 1]], KINK_PART * (b - a), kinks)]
+            cuts = [a, *(0.5 * (lo + hi) for lo, hi, _, _ in found), b]
+            for i, (lo, hi, s_lo, s_hi) in enumerate(found, 1):
+                # to KINK_PART of the narrower part beside it, lest that part's rule see the change again
+                tol = KINK_PART * min(cuts[i] - cuts[i - 1], cuts[i + 1] - cuts[i])
+                if hi - lo > tol:
+                    lo, hi, _ = narrow(p, lo, hi, s_lo, s_hi, max(tol, MIN_PART), kinks)
+                    cuts[i] = 0.5 * (lo + hi)
+            for c0, c1 in zip(cuts[:-1], cuts[1:]):
+                add(p, c0, c1)
             return
         k, g = _KRONROD @ fk, _GAUSS @ fk
         resasc = _KRONROD @ np.abs(fk - 0.5 * k)

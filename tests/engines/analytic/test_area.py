@@ -33,6 +33,38 @@ def test_a_kink_the_arcs_shape_announces_is_split_at_and_integrated_to_round_off
     assert len(calls) < 120
 
 
+def test_kinks_between_two_of_a_rules_nodes_are_found_one_after_the_other():
+    """Eight kinks 0.007 mm apart, all between two neighbouring nodes of the first rule (a wall's end
+    crossing the joints of an earlier pass's short moves): found in one cascade, each part then
+    ruled once, instead of one rule per kink that finds the next (369 evaluations)."""
+    kinks = [0.05 + 0.007 * i for i in range(8)]
+    calls = []
+
+    def width(z: float) -> tuple[float, Shape]:
+        calls.append(z)
+        return 1.0 + sum(max(0.0, z - k) for k in kinks), (1, (0.0, 2.0 * sum(z >= k for k in kinks)))
+
+    area, _ = contact_area(width, FLAT, 0.0, 1.0, [], rel_tol=1e-12)
+    assert area == pytest.approx(R * (1.0 + sum(0.5 * (1.0 - k) ** 2 for k in kinks)), rel=1e-13)
+    assert len(calls) < 340
+
+
+def test_an_end_whose_cause_flickers_costs_a_bounded_number_of_evaluations_and_no_accuracy():
+    """Over the last 1e-4 of the flank the end's cause flips every 1e-9 mm between two codes (the
+    lower surface and the wall of one earlier sweep, where they meet tangentially at a ball's
+    equator): parts that narrow are not split at kinks and a change within CLUSTER of the last is
+    no change of its own, so the rule ends within its budget, exact on the smooth W."""
+    calls = []
+
+    def width(z: float) -> tuple[float, Shape]:
+        calls.append(z)
+        return 1.0 + z * z, (1, (0.0, 2.0 if z < 1.0 - 1e-4 else 2.0 + int(z * 1e9) % 2))
+
+    area, _ = contact_area(width, FLAT, 0.0, 1.0, [], rel_tol=1e-12)
+    assert area == pytest.approx(R * 4.0 / 3.0, rel=1e-13)
+    assert len(calls) < 1200
+
+
 def test_material_blocker_names_the_stock_face_or_the_earlier_sweep():
     """-1 in the material; -2 - f outside the stock's face f (x0, y0, z0 = 0..2; x1, y1, z1 = 3..5);
     the row of the earlier sweep whose lower surface is at or below the point."""
