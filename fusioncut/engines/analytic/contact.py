@@ -19,7 +19,11 @@ e + r (cos theta, sin theta)`` at height ``e_z + zs`` is **engaged** when both h
   over the arc must not be below ``-eps`` (the tool at an earlier turn of a helix or circle).
 
 Interval ends: the predicate is evaluated at :data:`N_SCAN` even angles plus the closed-form front
-limits, then every change between neighbours is bisected to :data:`ANGLE_TOL` rad. Engaged arcs
+limits, then every change between neighbours is bisected to :data:`ANGLE_TOL` rad. The scan takes
+its angles :data:`BLOCK` at a time: where bounds over the block's arc settle the material test for
+all its points at once (:func:`block_state`: all inside the stock and above every sweep's floor,
+or all below one line sweep's tool at a single position), only the front's test is left per angle;
+the result is the same as angle by angle. Engaged arcs
 narrower than the scan step (0.5 degrees) that hold no front limit can be missed. Where the circle
 only touches a boundary (tangent to a stock face or an earlier wall), rounding leaves a gap of
 ~1e-8 rad: gaps under :data:`GAP_TOL` are closed, as the B-Rep engine's one contact face has none.
@@ -38,9 +42,12 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.cells import relevant_sweeps
-from fusioncut.engines.analytic.sweeps import OUTSIDE, arc_depth, end_velocity, sweep_floor, sweep_lower
+from fusioncut.engines.analytic.profile import profile_height
+from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_depth, end_velocity, floor_within, sweep_floor,
+                                               sweep_lower)
 
 N_SCAN = 720
+BLOCK = 8  # scan angles tested at once (block_state)
 ANGLE_TOL = 1e-10  # rad
 MANY = 12  # a grid cell holding more sweeps leaves out the dominated ones (.cells.relevant_sweeps)
 GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
@@ -90,6 +97,55 @@ def material_blocker(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gite
         if sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, eps) <= pz + eps:
             return j
     return -1
+
+
+@njit(cache=True)
+def block_state(t0, t1, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    """What holds for every point of the arc ``[t0, t1]`` (rad, ``t1 - t0 < pi``) of the circle of
+    radius ``r`` about ``(ex, ey)`` at height ``pz`` (:func:`material_at`), for certain: 1 all in the
+    material, 0 none, -1 not known. The arc lies within ``delta`` of its midpoint ``m``. It is all in
+    the material where it is strictly inside the stock's box and no sweep of the grid cells the disc
+    of radius ``delta`` about ``m`` meets has a floor over that disc (:func:`.sweeps.floor_within`) at
+    or below it; none is where it is beyond a face of the box, or where one line sweep of those cells
+    holds the whole disc below its lower surface: with ``c`` the point of its path nearest ``m``
+    (XY) at distance ``d``, ``d + delta <= R`` and ``z(c) + f(d + delta)`` at or below the arc (the
+    tool at ``c`` alone reaches that low over the disc), and the arc is lower than the stock's top by
+    twice ``eps`` (a grid cell leaves out the sweeps whose floor is above the top, :func:`sweep_grid`)."""
+    tm = 0.5 * (t0 + t1)
+    mx, my = ex + r * math.cos(tm), ey + r * math.sin(tm)
+    delta = 2.0 * r * math.sin(0.25 * (t1 - t0)) * (1.0 + 1e-9) + 1e-12
+    if (mx + delta <= stock[0] or mx - delta >= stock[3] or my + delta <= stock[1] or my - delta >= stock[4]
+            or pz <= stock[2] or pz >= stock[5]):
+        return 0
+    clear = stock[0] + delta < mx < stock[3] - delta and stock[1] + delta < my < stock[4] - delta
+    n = int(G[3])
+    i0 = min(max(int((mx - delta - G[0]) / G[2]), 0), n - 1)
+    i1 = min(max(int((mx + delta - G[0]) / G[2]), 0), n - 1)
+    j0 = min(max(int((my - delta - G[1]) / G[2]), 0), n - 1)
+    j1 = min(max(int((my + delta - G[1]) / G[2]), 0), n - 1)
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            c = i * n + j
+            for q in range(gstart[c], gstart[c + 1]):
+                k = gitems[q]
+                if (mx + delta < CB[k, 0] - eps or mx - delta > CB[k, 2] + eps or my + delta < CB[k, 1] - eps
+                        or my - delta > CB[k, 3] + eps):
+                    continue
+                if C[k, 3] > pz + eps and C[k, 6] > pz + eps:
+                    continue
+                t = int(C[k, 12])
+                P = PP[t, :NPC[t]]
+                if C[k, 0] == 0.0:
+                    ux, uy = C[k, 4] - C[k, 1], C[k, 5] - C[k, 2]
+                    uu = ux * ux + uy * uy
+                    s = 0.0 if uu <= 0.0 else min(max(((mx - C[k, 1]) * ux + (my - C[k, 2]) * uy) / uu, 0.0), 1.0)
+                    d = math.hypot(mx - C[k, 1] - s * ux, my - C[k, 2] - s * uy) + delta
+                    z = C[k, 3] + s * (C[k, 6] - C[k, 3])
+                    if d <= RR[t] and pz + 2.0 * eps < stock[5] and z + profile_height(P, d) <= pz + eps:
+                        return 0
+                if clear and floor_within(C[k], P, RR[t], mx, my, eps, delta) <= pz + eps:
+                    clear = False
+    return 1 if clear else -1
 
 
 @njit(cache=True)
@@ -225,7 +281,24 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
     th = np.sort(th)
     on = np.empty(n, dtype=np.bool_)
     for i in range(n):
-        on[i] = _engaged(th[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
+        on[i] = _ahead(th[i], vx, vy, lift)
+    for i0 in range(0, n, BLOCK):
+        i1 = min(i0 + BLOCK, n) - 1
+        if not on[i0:i1 + 1].any():
+            continue  # off the front's closed-form part
+        state = block_state(th[i0], th[i1], ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems) \
+            if i1 > i0 else -1
+        for i in range(i0, i1 + 1):
+            if not on[i]:
+                continue
+            if state == 0:
+                on[i] = False
+            elif state == 1:
+                on[i] = S[0] == 0.0 or arc_depth(S, P, R, ex + r * math.cos(th[i]), ey + r * math.sin(th[i]),
+                                                 pz) >= -eps
+            else:
+                on[i] = _engaged(th[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G,
+                                 gstart, gitems)
     out = np.empty((n, 4))
     out[:, 2:] = ENGAGED
     if on.all():

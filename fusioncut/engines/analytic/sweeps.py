@@ -498,6 +498,23 @@ def point_segment_distance(px, py, ax, ay, bx, by):
     return math.hypot(px - ax - t * ux, py - ay - t * uy)
 
 
+@njit(cache=True, inline="always")
+def path_distance(S, px, py):
+    """The least XY distance (mm) from ``p`` to the path of a line or arc sweep ``S``."""
+    if S[0] == 0.0:
+        return point_segment_distance(px, py, S[1], S[2], S[4], S[5])
+    qx, qy = px - S[7], py - S[8]
+    Q = math.sqrt(qx * qx + qy * qy)
+    sw = S[11]
+    inside = abs(sw) >= 2.0 * math.pi or Q <= 0.0
+    if not inside:  # is the direction of p within the arc's angular span?
+        off = (math.atan2(qy, qx) - S[10]) % (2.0 * math.pi)
+        inside = off <= sw if sw > 0.0 else off - 2.0 * math.pi >= sw
+    if inside:
+        return abs(Q - S[9])
+    return min(math.sqrt((px - S[1]) ** 2 + (py - S[2]) ** 2), math.sqrt((px - S[4]) ** 2 + (py - S[5]) ** 2))
+
+
 @njit(cache=True)
 def sweep_floor(S, P, R, px, py, eps):
     """A lower bound (mm) of :func:`sweep_lower` at ``p``, in closed form: the path's lowest tip
@@ -506,22 +523,21 @@ def sweep_floor(S, P, R, px, py, eps):
     whose lower surface cannot be below a height it already has. A stock's outside's is exact."""
     if S[0] == OUTSIDE:
         return outside_lower(S, px, py, eps)
-    if S[0] == 0.0:
-        d = point_segment_distance(px, py, S[1], S[2], S[4], S[5])
-    else:
-        qx, qy = px - S[7], py - S[8]
-        Q = math.sqrt(qx * qx + qy * qy)
-        sw = S[11]
-        inside = abs(sw) >= 2.0 * math.pi or Q <= 0.0
-        if not inside:  # is the direction of p within the arc's angular span?
-            off = (math.atan2(qy, qx) - S[10]) % (2.0 * math.pi)
-            inside = off <= sw if sw > 0.0 else off - 2.0 * math.pi >= sw
-        if inside:
-            d = abs(Q - S[9])
-        else:
-            d0 = math.sqrt((px - S[1]) ** 2 + (py - S[2]) ** 2)
-            d1 = math.sqrt((px - S[4]) ** 2 + (py - S[5]) ** 2)
-            d = min(d0, d1)
+    d = path_distance(S, px, py)
+    if d > R + eps:
+        return math.inf
+    return min(S[3], S[6]) + profile_height(P, d if d < R else R)
+
+
+@njit(cache=True)
+def floor_within(S, P, R, px, py, eps, reach):
+    """A lower bound (mm) of :func:`sweep_lower` over the disc of radius ``reach`` about ``p``: as
+    :func:`sweep_floor`, at the XY distance to the path less ``reach`` (a distance to a set changes
+    by no more than the point moves); inf where the whole disc is outside the footprint widened by
+    ``eps``. A stock's outside gets none (-inf)."""
+    if S[0] == OUTSIDE:
+        return -math.inf
+    d = max(path_distance(S, px, py) - reach, 0.0)
     if d > R + eps:
         return math.inf
     return min(S[3], S[6]) + profile_height(P, d if d < R else R)

@@ -1,0 +1,61 @@
+"""The engaged arcs' scan (fusioncut.engines.analytic.contact): what a block of scan angles is
+certified to be must be what each of its points is."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fusioncut.engines.analytic.contact import block_state, material_at, sweep_grid
+from fusioncut.engines.analytic.profile import lower_profile
+from fusioncut.engines.analytic.sweeps import arc_row, line_row
+from fusioncut.model import BallEndMill, BullNoseEndMill, FlatEndMill
+
+EPS = 1e-6
+STOCK = np.array([-10.0, -10.0, -15.0, 10.0, 10.0, 0.0])
+
+
+def _tools():
+    tools = (BallEndMill(6.0, 20.0), FlatEndMill(4.0, 20.0), BullNoseEndMill(8.0, 20.0, corner_radius=1.5))
+    profiles = [lower_profile(t) for t in tools]
+    width = max(len(p.pieces) for p in profiles)
+    PP = np.zeros((len(profiles), width, 6))
+    for i, p in enumerate(profiles):
+        PP[i, :len(p.pieces)] = p.pieces
+    return PP, np.array([len(p.pieces) for p in profiles]), np.array([p.radius for p in profiles])
+
+
+def test_a_block_certified_all_material_or_none_is_so_at_every_point():
+    """Earlier sweeps of three tools (level, ramped and 3D lines and a helix) in a box; random arcs
+    of 2 to 90 degrees of random circles at random heights. Where
+    ``block_state`` says 1 every one of 256 points of the arc is in the material (``material_at``),
+    where it says 0 none is; both certificates are given often (the scan saves nothing otherwise)."""
+    PP, NPC, RR = _tools()
+    C = np.array([
+        line_row((-15.0, -2.0, -3.0), (15.0, -2.0, -3.0), 0),  # a level ball pass beside the CL
+        line_row((-15.0, 4.0, -1.0), (15.0, 5.0, -4.0), 0),  # a ramp
+        line_row((-3.0, -15.0, -6.0), (2.0, 15.0, -2.0), 2),  # a bull-nose 3D line across
+        line_row((8.0, -10.0, -2.0), (8.0, 10.0, -2.0), 1),  # a flat end mill's slot
+        arc_row((-6.0, 0.0, -5.0), (-6.0, 0.0, -3.0), (-10.0, 0.0), 4.0, 0.0, 2.0 * math.pi, 0),  # a helix
+    ])
+    reach = [RR[int(r[12])] + 2 * EPS for r in C]
+    CB = np.array([[min(r[1], r[4]) - e, min(r[2], r[5]) - e, max(r[1], r[4]) + e, max(r[2], r[5]) + e]
+                   for r, e in zip(C, reach)])
+    CB[4] = [-10.0 - 4.0 - reach[4], -4.0 - reach[4], -10.0 + 4.0 + reach[4], 4.0 + reach[4]]
+    S = line_row((-4.0, 0.0, -2.5), (0.0, 0.0, -2.5), 0)
+    grid = sweep_grid(-12.0, -12.0, 24.0, 8, S, PP[0, :NPC[0]], 3.0, C, PP, NPC, RR, STOCK[2], STOCK[5],
+                      2 * EPS)
+    rng = np.random.default_rng(7)
+    seen = {-1: 0, 0: 0, 1: 0}
+    for _ in range(6000):
+        (x, y), r = rng.uniform(-9.0, 9.0, 2), rng.uniform(0.2, 3.0)
+        pz, t0 = rng.uniform(-9.0, 0.5), rng.uniform(0.0, 2 * math.pi)
+        t1 = t0 + math.radians(rng.uniform(2.0, 90.0))
+        state = block_state(t0, t1, x, y, pz, r, C, CB, PP, NPC, RR, STOCK, EPS, *grid)
+        seen[state] += 1
+        if state == -1:
+            continue
+        inside = [material_at(x + r * math.cos(t), y + r * math.sin(t), pz, C, CB, PP, NPC, RR, STOCK, EPS, *grid)
+                  for t in np.linspace(t0, t1, 256)]
+        assert all(inside) if state == 1 else not any(inside), (x, y, r, pz, t0, state)
+    assert min(seen.values()) > 200, seen
