@@ -59,7 +59,7 @@ TWO_PI = 2.0 * math.pi
 _GOLDEN = 0.6180339887498949
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cell(px, py, G, gstart):
     """(first, end) of the slice of the grid's item list for the cell holding (px, py); ``G`` = (x0,
     y0, cell width, cells a side), ``gstart`` the cells' offsets (row-major in x), see
@@ -148,7 +148,7 @@ def block_state(t0, t1, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart
     return 1 if clear else -1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
     """True where the stock held material at (px, py, pz) before the CL (:func:`material_blocker`)."""
     return material_blocker(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems) == -1
@@ -174,7 +174,7 @@ def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.
             np.array(items, dtype=np.int64))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _ahead(theta, vx, vy, lift):
     """The front condition's closed-form part at machine angle ``theta``: ``u . v_xy >= lift``."""
     g = math.cos(theta) * vx + math.sin(theta) * vy - lift
@@ -191,7 +191,7 @@ def _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps):
     return arc_depth(S, P, R, ex + r * math.cos(theta), ey + r * math.sin(theta), pz) >= -eps
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _engaged(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
     """Engaged at machine angle ``theta``: the closed-form front test first (it rules out the back
     half of a level move's circle at no cost), then the material, then an arc's earlier turns."""
@@ -397,7 +397,7 @@ def material_margin(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitem
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _margin_at(t, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
     return material_margin(ex + r * math.cos(t), ey + r * math.sin(t), pz, C, CB, PP, NPC, RR, stock, eps, G, gstart,
                            gitems)

@@ -163,7 +163,7 @@ def corner_radii(pieces: np.ndarray, tol: float = 1e-9) -> tuple[float, ...]:
     return tuple(out)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def profile_height(P, d):
     """f(d): height (mm above the tip) of the tool's lowest point at radial distance ``d``; d beyond
     R takes the outermost piece's end."""
@@ -180,7 +180,7 @@ def profile_height(P, d):
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def profile_slope(P, d):
     """f'(d) (dimensionless); infinite where an arc stands vertical."""
     n = P.shape[0]
@@ -223,7 +223,7 @@ def profile_radius(P, h):
     return P[n - 1, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def profile_radius_slope(P, h):
     """rho'(h): growth of the cross-section's radius with height (0 above the profile, inf on a
     flat bottom's height)."""

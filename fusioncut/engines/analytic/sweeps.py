@@ -84,7 +84,7 @@ def outside_row(center, radius: float, z: float, tool: int) -> np.ndarray:
     return row
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def outside_lower(S, px, py, eps):
     """The lower surface of a stock's outside (kind 2, module docstring) at ``p``: ``z0`` at or
     beyond ``rho - eps`` from the centre, inf within."""
@@ -93,20 +93,20 @@ def outside_lower(S, px, py, eps):
     return math.inf
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def is_flat(P):
     """Whether the lower profile ``P`` is a flat end mill's: one line piece of slope 0 (f = 0 out to R)."""
     return P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def is_ball(P, R):
     """Whether the lower profile ``P`` (radius ``R``) is a ball's: one arc of radius R about (0, R)."""
     return P.shape[0] == 1 and P[0, 0] == ARC and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R
 
 
 # -- lines ---------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _line_slope(S, P, R, px, py, t):
     """d/dt of z(t) + f(d(t)) on a line (the right derivative where d = 0)."""
     ux, uy = S[4] - S[1], S[5] - S[2]
@@ -123,7 +123,7 @@ def _line_slope(S, P, R, px, py, t):
     return dz + fp * dd
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _line_value(S, P, R, px, py, t):
     dx, dy = S[1] + t * (S[4] - S[1]) - px, S[2] + t * (S[5] - S[2]) - py
     d = math.sqrt(dx * dx + dy * dy)
@@ -173,7 +173,7 @@ def line_lower(S, P, R, px, py, eps):
     return _convex_min(S, P, R, px, py, lo, hi)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _slope(S, P, R, px, py, t):
     """d/dt of z(t) + f(d(t)) on a line or an arc."""
     if S[0] == LINE:
@@ -181,7 +181,7 @@ def _slope(S, P, R, px, py, t):
     return _arc_slope(S, P, R, px, py, t)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _value(S, P, R, px, py, t):
     """z(t) + f(min(d(t), R)) on a line or an arc."""
     if S[0] == LINE:
@@ -226,7 +226,7 @@ def _convex_min(S, P, R, px, py, lo, hi):
 
 
 # -- arcs ----------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _arc_value(mode, S, P, R, px, py, pz, t):
     """mode 0: z(t) + f(min(d, R)); mode 1: phi(t) = d(t) - rho(pz - z(t)) (< 0: p strictly inside
     the tool at t)."""
@@ -240,7 +240,7 @@ def _arc_value(mode, S, P, R, px, py, pz, t):
     return d - r
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _arc_slope(S, P, R, px, py, t):
     """d/dt of z(t) + f(d(t)) on an arc (the right derivative where d = 0)."""
     a = S[10] + t * S[11]
@@ -278,14 +278,14 @@ def _convex_window_min(S, P, R, px, py, ta, tb, tc, td):
 _A, _B, _X, _W, _V, _FX, _FW, _FV, _D, _E, _TOL = range(11)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def brent_start(a, x, b, fx, tol):
     """Brent's state on the bracket [a, b] around ``x`` (value ``fx``), to stop once the bracket is
     within ``tol`` of the best point."""
     return np.array([a, b, x, x, x, fx, fx, fx, 0.0, 0.0, tol + 1e-300])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def brent_next(st):
     """The next point to evaluate, or nan once the bracket is within its tolerance."""
     a, b, x, w, v, fx, fw, fv, d, e, tol = st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], st[8], st[9], st[10]
@@ -313,7 +313,7 @@ def brent_next(st):
     return x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def brent_take(st, u, fu):
     """Take the value ``fu`` at the point ``u`` :func:`brent_next` gave."""
     x = st[_X]
@@ -480,7 +480,7 @@ def _flat_arc_depth(S, R, px, py, pz):
 
 
 # -- either --------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def sweep_lower(S, P, R, px, py, eps):
     if S[0] == 0.0:
         return line_lower(S, P, R, px, py, eps)
@@ -489,7 +489,7 @@ def sweep_lower(S, P, R, px, py, eps):
     return arc_lower(S, P, R, px, py, eps)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def point_segment_distance(px, py, ax, ay, bx, by):
     """XY distance (mm) from the point (px, py) to the segment from (ax, ay) to (bx, by)."""
     ux, uy = bx - ax, by - ay
@@ -499,7 +499,7 @@ def point_segment_distance(px, py, ax, ay, bx, by):
 
 
 @njit(cache=True, inline="always")
-def path_distance(S, px, py):
+def point_path_distance(S, px, py):
     """The least XY distance (mm) from ``p`` to the path of a line or arc sweep ``S``."""
     if S[0] == 0.0:
         return point_segment_distance(px, py, S[1], S[2], S[4], S[5])
@@ -515,7 +515,7 @@ def path_distance(S, px, py):
     return min(math.sqrt((px - S[1]) ** 2 + (py - S[2]) ** 2), math.sqrt((px - S[4]) ** 2 + (py - S[5]) ** 2))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def sweep_floor(S, P, R, px, py, eps):
     """A lower bound (mm) of :func:`sweep_lower` at ``p``, in closed form: the path's lowest tip
     height plus ``f`` at the least XY distance from ``p`` to the path (``z(t) >= min z`` and ``f``
@@ -523,7 +523,7 @@ def sweep_floor(S, P, R, px, py, eps):
     whose lower surface cannot be below a height it already has. A stock's outside's is exact."""
     if S[0] == OUTSIDE:
         return outside_lower(S, px, py, eps)
-    d = path_distance(S, px, py)
+    d = point_path_distance(S, px, py)
     if d > R + eps:
         return math.inf
     return min(S[3], S[6]) + profile_height(P, d if d < R else R)
@@ -537,13 +537,13 @@ def floor_within(S, P, R, px, py, eps, reach):
     ``eps``. A stock's outside gets none (-inf)."""
     if S[0] == OUTSIDE:
         return -math.inf
-    d = max(path_distance(S, px, py) - reach, 0.0)
+    d = max(point_path_distance(S, px, py) - reach, 0.0)
     if d > R + eps:
         return math.inf
     return min(S[3], S[6]) + profile_height(P, d if d < R else R)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def end_velocity(S):
     """(vx, vy, vz): dc/dt at t = 1 (mm per unit t)."""
     if S[0] == 0.0:

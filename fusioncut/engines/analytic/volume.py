@@ -104,7 +104,7 @@ def height_and_cause(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
     return (high - low if high > low else 0.0), cause, own
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """What shapes the removed height at (x, y): 0 where nothing is removed, else 1 + 2 * (the index
     of the sweep giving ``h``, or -1 for the stock's top) + (1 where ``L`` is below the stock's
@@ -113,7 +113,7 @@ def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     return _code(v, cause, own, zb)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _code(v, cause, own, zb):
     """:func:`_state`'s code of a removed height ``v`` given by sweep ``cause`` over ``L = own``."""
     return 0 if v <= 0.0 else 3 + 2 * cause + (1 if own < zb else 0)
@@ -361,7 +361,7 @@ def _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     return max(sweep_lower(C[j], Pk, Rk, x, a, 0.0), sweep_lower(C[j], Pk, Rk, x, b, 0.0)) <= floor
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _smooth(a, b, u):
     """The point of [a, b] at the Gauss node ``u`` in [-1, 1] under y = a + (b - a) s^2 (3 - 2 s),
     s = (u + 1) / 2, and the weight factor dy/du: the map's zero slope at both ends turns a square
@@ -370,7 +370,7 @@ def _smooth(a, b, u):
     return a + (b - a) * s * s * (3.0 - 2.0 * s), 3.0 * (b - a) * s * (1.0 - s)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _node(i):
     """Gauss-Kronrod node i of 15 on [-1, 1] (pairs +-x_j for i < 14, the centre last), its Kronrod
     weight and its Gauss weight (0 at the Kronrod-only nodes)."""
@@ -380,7 +380,7 @@ def _node(i):
     return u, _WK[j], wg
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _error(diff, scale):
     """QUADPACK's error estimate of a Kronrod sum from its difference to the Gauss sum: the
     Kronrod rule is far more accurate than the Gauss one on smooth parts."""
