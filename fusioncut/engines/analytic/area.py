@@ -183,7 +183,8 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
                   and (kinks or shapes[order[k]][0] != shapes[order[k + 1]][0])]
         if change and evals < MAX_EVALS:
             found = [e for k in change for e in events(p, us[order[k]], us[order[k + 1]], shapes[order[k]],
-                                                       shapes[order[k + 1]], KINK_PART * (b - a), kinks)]
+                                                       shapes[order[k + 1]], max(KINK_PART * (b - a), MIN_PART),
+                                                       kinks)]
             cuts = [a, *(0.5 * (lo + hi) for lo, hi, _, _ in found), b]
             for i, (lo, hi, s_lo, s_hi) in enumerate(found, 1):
                 # to KINK_PART of the narrower part beside it, lest that part's rule see the change again

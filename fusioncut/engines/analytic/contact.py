@@ -43,8 +43,8 @@ from numba import njit
 
 from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_depth, end_velocity, floor_within, sweep_floor,
-                                               sweep_lower)
+from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_depth, end_velocity, floor_within, segment_nearest,
+                                               sweep_floor, sweep_lower)
 
 N_SCAN = 720
 BLOCK = 8  # scan angles tested at once (block_state)
@@ -136,10 +136,8 @@ def block_state(t0, t1, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart
                 t = int(C[k, 12])
                 P = PP[t, :NPC[t]]
                 if C[k, 0] == 0.0:
-                    ux, uy = C[k, 4] - C[k, 1], C[k, 5] - C[k, 2]
-                    uu = ux * ux + uy * uy
-                    s = 0.0 if uu <= 0.0 else min(max(((mx - C[k, 1]) * ux + (my - C[k, 2]) * uy) / uu, 0.0), 1.0)
-                    d = math.hypot(mx - C[k, 1] - s * ux, my - C[k, 2] - s * uy) + delta
+                    s, d = segment_nearest(mx, my, C[k, 1], C[k, 2], C[k, 4], C[k, 5])
+                    d += delta
                     z = C[k, 3] + s * (C[k, 6] - C[k, 3])
                     if d <= RR[t] and pz + 2.0 * eps < stock[5] and z + profile_height(P, d) <= pz + eps:
                         return 0

@@ -490,12 +490,19 @@ def sweep_lower(S, P, R, px, py, eps):
 
 
 @njit(cache=True, inline="always")
-def point_segment_distance(px, py, ax, ay, bx, by):
-    """XY distance (mm) from the point (px, py) to the segment from (ax, ay) to (bx, by)."""
+def segment_nearest(px, py, ax, ay, bx, by):
+    """(t, d): the point ``a + t (b - a)`` (t in [0, 1]) of the segment from (ax, ay) to (bx, by)
+    nearest the point (px, py), and its XY distance (mm) to it."""
     ux, uy = bx - ax, by - ay
     uu = ux * ux + uy * uy
     t = 0.0 if uu <= 0.0 else min(max(((px - ax) * ux + (py - ay) * uy) / uu, 0.0), 1.0)
-    return math.hypot(px - ax - t * ux, py - ay - t * uy)
+    return t, math.hypot(px - ax - t * ux, py - ay - t * uy)
+
+
+@njit(cache=True, inline="always")
+def point_segment_distance(px, py, ax, ay, bx, by):
+    """XY distance (mm) from the point (px, py) to the segment from (ax, ay) to (bx, by)."""
+    return segment_nearest(px, py, ax, ay, bx, by)[1]
 
 
 @njit(cache=True, inline="always")
