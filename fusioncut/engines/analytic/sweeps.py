@@ -38,6 +38,11 @@ is ``f(d)`` (``f`` convex, non-decreasing); a ball's ``-sqrt(R^2 - d^2)`` is con
 ``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
 ``R``, so that a wall an earlier sweep left exactly where the tool stands now (a retraced pass) is
 taken as cut, not as a zero-thickness skin.
+
+The small functions the analytic kernels' inner loops call (here, in :mod:`.profile`, :mod:`.contact`
+and :mod:`.volume`) are ``njit(inline="always")``: numba compiles a call to another njit function as
+a call, and these run millions of times a CL. Larger ones (``line_lower``, ``arc_lower``) stay calls:
+inlined at every call site they multiply the compile time.
 """
 from __future__ import annotations
 
