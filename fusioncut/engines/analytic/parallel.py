@@ -188,7 +188,9 @@ class ParallelAnalyticEngine:
         client = self._client
         n_workers = max(1, len(client.scheduler_info()["workers"]))
         run = uuid.uuid4().hex
-        shared = client.scatter(toolpath, broadcast=True)
+        # a key of its own (hash=False): dask's default key is a token of the whole toolpath, which walks
+        # every move in the driver
+        shared = client.scatter(toolpath, broadcast=True, hash=False)
         stock = self._local.stock_model()  # the workers start from the run's stock, as the local engine did
         # chunks of at most ``chunk`` CLs, and at least 16 per worker, so that the last ones to finish
         # leave a worker idle only briefly
