@@ -36,7 +36,7 @@ def test_a_kink_the_arcs_shape_announces_is_split_at_and_integrated_to_round_off
 def test_kinks_between_two_of_a_rules_nodes_are_found_one_after_the_other():
     """Eight kinks 0.007 mm apart, all between two neighbouring nodes of the first rule (a wall's end
     crossing the joints of an earlier pass's short moves): found in one cascade, each part then
-    ruled once, instead of one rule per kink that finds the next (369 evaluations)."""
+    ruled once, instead of one rule per kink that finds the next."""
     kinks = [0.05 + 0.007 * i for i in range(8)]
     calls = []
 
