@@ -64,6 +64,11 @@ _GAUSS = np.zeros(15)
 _GAUSS[[1, 3, 5, 7, 9, 11, 13]] = [_WG[0], _WG[1], _WG[2], _WG[3], _WG[0], _WG[1], _WG[2]]
 
 
+def _differ(a: Shape, b: Shape, kinks: bool) -> bool:
+    """Whether two shapes of the engaged arcs differ: in anything where ``kinks``, else in their number."""
+    return a != b if kinks else a[0] != b[0]
+
+
 class SurfacePiece:
     """One piece of the generating curve over the parameter ``[u0, u1]``: ``at(u)`` gives ``(d, z,
     ds/du)`` (mm, mm, mm per unit of u)."""
@@ -132,13 +137,10 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
         """The bracket [lo, hi] of a change of shape from ``s_lo`` bisected to ``tol`` (to MIN_PART
         where the number of arcs changes), and the shape at its new ``hi``; where ``kinks`` is False only
         the number of arcs counts."""
-        def key(s: Shape) -> Shape | int:
-            return s if kinks else s[0]
-
         while hi - lo > (MIN_PART if s_lo[0] != s_hi[0] else tol):
             m = 0.5 * (lo + hi)
             sm = at(p, m)[1]
-            if key(sm) == key(s_lo):
+            if not _differ(sm, s_lo, kinks):
                 lo = m
             else:
                 hi, s_hi = m, sm
@@ -152,7 +154,7 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
         :data:`MAX_EVALS` are spent); where ``kinks`` is False only changes of the number of arcs."""
         out: list[tuple[float, float, Shape, Shape]] = []
         gap = CLUSTER * (b - a)
-        while len(out) < MAX_CHANGES and evals < MAX_EVALS and (sa != sb if kinks else sa[0] != sb[0]):
+        while len(out) < MAX_CHANGES and evals < MAX_EVALS and _differ(sa, sb, kinks):
             lo, hi, s_hi = narrow(p, a, b, sa, sb, tol, kinks)
             out.append((lo, hi, sa, s_hi))
             # the next change lies between here and b; one closer than the gap is a flicker of the
@@ -179,8 +181,7 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
             fk[i] = f * 3.0 * (b - a) * t * (1.0 - t)
         order = np.argsort(us)
         kinks = b - a > KINK_SPAN * (p.u1 - p.u0)
-        change = [k for k in range(n - 1) if shapes[order[k]] != shapes[order[k + 1]]
-                  and (kinks or shapes[order[k]][0] != shapes[order[k + 1]][0])]
+        change = [k for k in range(n - 1) if _differ(shapes[order[k]], shapes[order[k + 1]], kinks)]
         if change and evals < MAX_EVALS:
             found = [e for k in change for e in events(p, us[order[k]], us[order[k + 1]], shapes[order[k]],
                                                        shapes[order[k + 1]], max(KINK_PART * (b - a), MIN_PART),

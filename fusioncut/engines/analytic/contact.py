@@ -179,14 +179,19 @@ def _ahead(theta, vx, vy, lift):
     return g >= -1e-12 * (abs(vx) + abs(vy) + abs(lift))
 
 
+@njit(cache=True, inline="always")
+def _past_own_turns(S, P, R, px, py, pz, eps):
+    """The front condition's part beyond the closed form: (px, py, pz) is not inside the tool at an
+    earlier position of the CL's arc by more than ``eps`` (a line's front needs nothing more)."""
+    return S[0] == 0.0 or arc_depth(S, P, R, px, py, pz) >= -eps
+
+
 @njit(cache=True)
 def _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps):
     """The front condition at machine angle ``theta`` (module docstring); ``lift = rho'(zs) v_z``."""
     if not _ahead(theta, vx, vy, lift):
         return False
-    if S[0] == 0.0:
-        return True
-    return arc_depth(S, P, R, ex + r * math.cos(theta), ey + r * math.sin(theta), pz) >= -eps
+    return _past_own_turns(S, P, R, ex + r * math.cos(theta), ey + r * math.sin(theta), pz, eps)
 
 
 @njit(cache=True, inline="always")
@@ -198,7 +203,7 @@ def _engaged(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, st
     px, py = ex + r * math.cos(theta), ey + r * math.sin(theta)
     if not material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
         return False
-    return S[0] == 0.0 or arc_depth(S, P, R, px, py, pz) >= -eps
+    return _past_own_turns(S, P, R, px, py, pz, eps)
 
 
 @njit(cache=True)
@@ -224,7 +229,7 @@ def end_cause(theta, inside, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NP
         return 2 * j + (1 if wall else 0)
     if b != -1:
         return b
-    return OWN_TURN if S[0] != 0.0 and arc_depth(S, P, R, px, py, pz) < -eps else ENGAGED
+    return ENGAGED if _past_own_turns(S, P, R, px, py, pz, eps) else OWN_TURN
 
 
 @njit(cache=True)
@@ -292,8 +297,7 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
             if state == 0:
                 on[i] = False
             elif state == 1:
-                on[i] = S[0] == 0.0 or arc_depth(S, P, R, ex + r * math.cos(th[i]), ey + r * math.sin(th[i]),
-                                                 pz) >= -eps
+                on[i] = _past_own_turns(S, P, R, ex + r * math.cos(th[i]), ey + r * math.sin(th[i]), pz, eps)
             else:
                 on[i] = _engaged(th[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G,
                                  gstart, gitems)

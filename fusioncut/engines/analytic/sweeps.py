@@ -535,13 +535,10 @@ def sweep_floor(S, P, R, px, py, eps):
     whose lower surface cannot be below a height it already has. A stock's outside's is exact."""
     if S[0] == OUTSIDE:
         return outside_lower(S, px, py, eps)
-    d = point_path_distance(S, px, py)
-    if d > R + eps:
-        return math.inf
-    return min(S[3], S[6]) + profile_height(P, d if d < R else R)
+    return floor_within(S, P, R, px, py, eps, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def floor_within(S, P, R, px, py, eps, reach):
     """A lower bound (mm) of :func:`sweep_lower` over the disc of radius ``reach`` about ``p``: as
     :func:`sweep_floor`, at the XY distance to the path less ``reach`` (a distance to a set changes
