@@ -43,7 +43,7 @@ from numba import njit
 
 from fusioncut.engines.analytic.cells import relevant_sweeps
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_depth, end_velocity, floor_within, segment_nearest,
+from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_holds, end_velocity, floor_within, segment_nearest,
                                                sweep_floor, sweep_lower)
 
 N_SCAN = 720
@@ -183,7 +183,7 @@ def _ahead(theta, vx, vy, lift):
 def _past_own_turns(S, P, R, px, py, pz, eps):
     """The front condition's part beyond the closed form: (px, py, pz) is not inside the tool at an
     earlier position of the CL's arc by more than ``eps`` (a line's front needs nothing more)."""
-    return S[0] == 0.0 or arc_depth(S, P, R, px, py, pz) >= -eps
+    return S[0] == 0.0 or not arc_holds(S, P, R, px, py, pz, eps)
 
 
 @njit(cache=True)

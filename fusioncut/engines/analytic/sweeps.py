@@ -35,6 +35,11 @@ With ``u`` the angle from the direction of ``p`` (at XY distance ``Q`` from the 
 is ``f(d)`` (``f`` convex, non-decreasing); a ball's ``-sqrt(R^2 - d^2)`` is convex further, while
 ``cos u >= 0``. A window's part within ``R`` that reaches beyond that is sampled.
 
+Whether a point lies inside the tool at some position of an arc (:func:`arc_holds`, the front
+condition of an arc's own earlier turns) is decided from ``d^2 - rho^2``, convex over each window
+within ``cos u >= 0`` where ``rho^2`` is concave (flat, ball, bull-nose): one minimum a window,
+bracketed by its slope's sign, no sampling; other tools' windows are sampled as above.
+
 ``eps`` (mm) widens the footprint: ``|p - c(t)| <= R + eps`` with ``f`` held at ``f(R)`` beyond
 ``R``, so that a wall an earlier sweep left exactly where the tool stands now (a retraced pass) is
 taken as cut, not as a zero-thickness skin.
@@ -51,7 +56,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_slope
+from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope, profile_slope
 
 SWEEP_COLUMNS = ("kind", "x0", "y0", "z0", "x1", "y1", "z1", "cx", "cy", "rho", "a0", "sw", "tool")
 NCOL = len(SWEEP_COLUMNS)
@@ -438,10 +443,123 @@ def arc_lower(S, P, R, px, py, eps):
 def arc_depth(S, P, R, px, py, pz):
     """min over t of phi(t) = |p - c(t)| - rho(pz - z(t)) on an arc sweep (mm): < 0 where the point
     lies strictly inside some tool position of the sweep. A flat end mill's in closed form
-    (:func:`_flat_arc_depth`), another tool's sampled and refined (:func:`_window_min`)."""
+    (:func:`_flat_arc_depth`), another tool's sampled and refined (:func:`_window_min`; the engine
+    asks :func:`arc_holds`, which samples only where the gap is not convex)."""
     if is_flat(P):
         return _flat_arc_depth(S, R, px, py, pz)
     return _window_min(1, S, P, R, px, py, pz, 0.0, 1.0)
+
+
+@njit(cache=True, inline="always")
+def _rho2_concave(P):
+    """Whether rho(h)^2 is concave in h for the lower profile ``P``: each line piece is flat (a
+    flat bottom at the tip; a cone's rho is linear, its square convex). rho is concave and
+    non-decreasing (:mod:`.profile`); on an arc piece about (a, b) it is a + s, s = sqrt(c^2 - (b -
+    h)^2), so rho^2 = a^2 + 2 a s + s^2 with s and s^2 concave and a >= 0; at the pieces' joints
+    (rho^2)' = 2 rho rho' does not grow."""
+    for i in range(P.shape[0]):
+        if (P[i, 0] == 0.0 and P[i, 4] != 0.0) or (P[i, 0] != 0.0 and P[i, 3] < 0.0):
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _arc_gap(S, P, px, py, pz, t):
+    """d(t)^2 - rho(pz - z(t))^2 on an arc sweep (mm^2), the tip at or below ``pz``: < 0 where the point
+    lies strictly inside the tool at ``t``."""
+    a = S[10] + t * S[11]
+    dx, dy = S[7] + S[9] * math.cos(a) - px, S[8] + S[9] * math.sin(a) - py
+    r = profile_radius(P, max(pz - (S[3] + t * (S[6] - S[3])), 0.0))
+    return dx * dx + dy * dy - r * r
+
+
+@njit(cache=True, inline="always")
+def _arc_gap_slope(S, P, px, py, pz, t):
+    """d/dt of :func:`_arc_gap` (mm^2): 2 (c - p).c' + 2 rho rho'(h) (z1 - z0), h = pz - z(t); nan
+    where rho' is infinite (a flat bottom's height) on a helix."""
+    a = S[10] + t * S[11]
+    ca, sa = math.cos(a), math.sin(a)
+    dx, dy = S[7] + S[9] * ca - px, S[8] + S[9] * sa - py
+    g = 2.0 * S[9] * S[11] * (dy * ca - dx * sa)
+    dz = S[6] - S[3]
+    if dz == 0.0:
+        return g
+    h = max(pz - (S[3] + t * dz), 0.0)
+    return g + 2.0 * profile_radius(P, h) * profile_radius_slope(P, h) * dz
+
+
+@njit(cache=True)
+def arc_holds(S, P, R, px, py, pz, eps):
+    """Whether (px, py, pz) lies inside the tool at some position of the arc sweep ``S`` by more than
+    ``eps`` (mm): the least ``phi`` of :func:`arc_depth` is below ``-eps``.
+
+    Exact without sampling where ``rho^2`` is concave (:func:`_rho2_concave`: flat, ball, bull-nose)
+    and the windows of angle within ``R`` of the point span no more than ``cos u >= 0`` (``u`` the
+    angle from the point's direction, :func:`arc_lower`): there ``d^2 = A - B cos u`` is convex in
+    ``t`` and so is ``-rho(pz - z(t))^2`` (``z`` linear in ``t``), so the gap ``d^2 - rho^2``
+    (:func:`_arc_gap`), of the sign of ``phi``, has one minimum in each window's part where the tip
+    is at or below the point, found by Brent's method to :data:`T_TOL`. ``phi`` at that least gap
+    decides, except where the gap is below 0 while ``phi`` is within ``eps`` of it: that window is
+    sampled and refined as :func:`arc_depth` does, as is every other case."""
+    if is_flat(P):
+        return _flat_arc_depth(S, R, px, py, pz) < -eps
+    qx, qy = px - S[7], py - S[8]
+    Q = math.sqrt(qx * qx + qy * qy)
+    rho, sw = S[9], S[11]
+    if Q * rho <= 1e-15 or sw == 0.0 or not _rho2_concave(P):
+        return _window_min(1, S, P, R, px, py, pz, 0.0, 1.0) < -eps
+    kr = (rho * rho + Q * Q - R * R) / (2.0 * rho * Q)
+    if kr >= 1.0:
+        return False  # every position's axis is R or more away: d >= R >= rho
+    if kr < 0.0:
+        return _window_min(1, S, P, R, px, py, pz, 0.0, 1.0) < -eps
+    z0, z1 = S[3], S[6]
+    tlo, thi = 0.0, 1.0  # where the tip is at or below pz (elsewhere phi = d + 1 > 0)
+    if z1 == z0:
+        if pz < z0:
+            return False
+    elif z1 > z0:
+        thi = min((pz - z0) / (z1 - z0), 1.0)
+    else:
+        tlo = max((pz - z0) / (z1 - z0), 0.0)
+    if tlo > thi:
+        return False
+    w = math.acos(kr)
+    b0 = S[10] - math.atan2(qy, qx)
+    lo, hi = min(b0, b0 + sw), max(b0, b0 + sw)
+    for k in range(int(math.ceil((lo - w) / (2.0 * math.pi))), int(math.floor((hi + w) / (2.0 * math.pi))) + 1):
+        blo, bhi = max(lo, 2.0 * math.pi * k - w), min(hi, 2.0 * math.pi * k + w)
+        if blo > bhi:
+            continue
+        ta, tb = (blo - b0) / sw, (bhi - b0) / sw
+        ta, tb = max(min(ta, tb), tlo), min(max(ta, tb), thi)
+        if ta > tb:
+            continue
+        if not _arc_gap_slope(S, P, px, py, pz, tb) > 0.0:  # falling to the end (nan: sampled below)
+            t_min = tb if _arc_gap_slope(S, P, px, py, pz, tb) <= 0.0 else -1.0
+        elif not _arc_gap_slope(S, P, px, py, pz, ta) < 0.0:
+            t_min = ta if _arc_gap_slope(S, P, px, py, pz, ta) >= 0.0 else -1.0
+        else:
+            m = 0.5 * (ta + tb)
+            st = brent_start(ta, m, tb, _arc_gap(S, P, px, py, pz, m), T_TOL * (tb - ta))
+            for _ in range(_BRENT_STEPS):
+                u = brent_next(st)
+                if math.isnan(u):
+                    break
+                brent_take(st, u, _arc_gap(S, P, px, py, pz, u))
+            t_min = st[_X]
+        if t_min >= 0.0:
+            gap = _arc_gap(S, P, px, py, pz, t_min)
+            # inside by more than eps at t needs gap(t) < eps^2 - 2 eps rho(t), and rho(t) >= rho at
+            # the window's least height
+            h_min = pz - max(S[3] + ta * (S[6] - S[3]), S[3] + tb * (S[6] - S[3]))
+            if gap >= eps * eps - 2.0 * eps * max(profile_radius(P, h_min), 0.0):
+                continue
+            if _arc_value(1, S, P, R, px, py, pz, t_min) < -eps:
+                return True
+        if _window_min(1, S, P, R, px, py, pz, ta, tb) < -eps:
+            return True
+    return False
 
 
 @njit(cache=True)

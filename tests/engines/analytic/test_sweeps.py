@@ -184,3 +184,62 @@ def test_flat_end_mill_arc_depth_closed_form_against_the_sampled_one():
     mid = (5 * math.sqrt(0.5), 5 * math.sqrt(0.5), -1.5)
     assert arc_depth(S, P, 3.0, *mid) == pytest.approx(-3.0, abs=1e-12)
     assert arc_depth(S, P, 3.0, mid[0], mid[1], -2.5) == pytest.approx(1.0, abs=1e-12)  # below every tip
+
+
+def _corner_radius_at(r0, rc):
+    """rho(h) of a flat bottom of radius r0 with a quarter round of radius rc outside it, straight up after."""
+    return lambda h: np.where(h < rc, r0 + np.sqrt(np.clip(rc * rc - (rc - h) ** 2, 0.0, None)), r0 + rc)
+
+
+_OUTLINE_RADIUS = {  # the tools' cross-section radius at a height above the tip, from their dimensions
+    "ball": lambda t: _corner_radius_at(0.0, t.diameter / 2),
+    "bullnose": lambda t: _corner_radius_at(t.diameter / 2 - t.corner_radius, t.corner_radius),
+    "tapered": lambda t: lambda h: np.interp(h, [0.0, t.flute_length], [t.diameter / 2, t.diameter / 2 + t.flute_length
+                                                                          * math.tan(math.radians(t.taper_angle))]),
+}
+
+
+def _dense_phi_min(S, radius_at, px, py, pz, n=200_001):
+    """min over n even t of |p - c(t)| - rho(pz - z(t)) on an arc sweep, rho from the tool's outline
+    (-1 below the tip): the oracle of arc_holds, sampled finely enough that its error (<= the step
+    times the slope) stays far below the band the test leaves out."""
+    t = np.linspace(0.0, 1.0, n)
+    a = S[10] + t * S[11]
+    d = np.hypot(S[7] + S[9] * np.cos(a) - px, S[8] + S[9] * np.sin(a) - py)
+    h = pz - (S[3] + t * (S[6] - S[3]))
+    return float(np.min(d - np.where(h < 0, -1.0, radius_at(np.maximum(h, 0.0)))))
+
+
+@pytest.mark.parametrize("kind", ["ball", "bullnose", "tapered"])
+def test_arc_holds_against_the_dense_minimum(kind):
+    """Whether a point lies inside the tool at some position of an arc or helix (one or several
+    turns, up, down, level): arc_holds against a dense minimum of |p - c(t)| - rho over t from the
+    tool's own outline, on points within reach; those within 1e-4 mm of the answer's edge are left
+    out (the oracle's step). Ball and bull-nose are decided from the convex gap d^2 - rho^2, the
+    tapered mill (a cone: rho^2 convex) by sampling."""
+    from fusioncut.engines.analytic.sweeps import arc_holds
+
+    tool = TOOLS[kind]
+    lp = lower_profile(tool)
+    R = lp.radius
+    radius_at = _OUTLINE_RADIUS[kind](tool)
+    rng = np.random.default_rng(11)
+    decided = inside = 0
+    for i in range(300):
+        rho, a0, sw = rng.uniform(0.5, 12), rng.uniform(-4, 4), rng.choice([-1, 1]) * rng.uniform(0.3, 14)
+        z0 = rng.uniform(-3, 0)
+        z1 = z0 + (0.0 if i % 4 == 0 else rng.uniform(-4, 4))
+        c = (rng.uniform(-2, 2), rng.uniform(-2, 2))
+        S = arc_row((c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z0),
+                    (c[0] + rho * math.cos(a0 + sw), c[1] + rho * math.sin(a0 + sw), z1), c, rho, a0, sw, 0)
+        for _ in range(6):
+            ang, off = rng.uniform(0, 2 * math.pi), rng.uniform(-R, R)
+            p = (c[0] + (rho + off) * math.cos(ang), c[1] + (rho + off) * math.sin(ang),
+                 rng.uniform(min(z0, z1) - 0.5, max(z0, z1) + R))
+            want = _dense_phi_min(S, radius_at, *p)
+            if abs(want) < 1e-4:
+                continue
+            decided += 1
+            inside += want < 0
+            assert arc_holds(S, lp.pieces, R, *p, 1e-9) == (want < 0), (i, p, want)
+    assert decided > 1500 and 0.2 * decided < inside < 0.8 * decided
