@@ -32,8 +32,9 @@ Nor does a window where the value is convex: there it is minimised as on a line,
 With ``u`` the angle from the direction of ``p`` (at XY distance ``Q`` from the centre),
 ``d^2 = A - B cos u`` (``A = rho^2 + Q^2``, ``B = 2 rho Q``), and ``d`` is convex in ``u`` while
 ``cos u >= min(rho, Q) / max(rho, Q)`` (``d'' >= 0`` iff ``2 A cos u - B cos^2 u - B >= 0``), so then
-is ``f(d)`` (``f`` convex, non-decreasing); a ball's ``-sqrt(R^2 - d^2)`` is convex further, while
-``cos u >= 0``. A window's part within ``R`` that reaches beyond that is sampled.
+is ``f(d)`` (``f`` convex, non-decreasing); a round profile's (ball, bull-nose: :func:`_round`)
+``f(d) = F(d^2)`` with ``F`` convex and non-decreasing is convex further, while ``cos u >= 0``. A
+window's part within ``R`` that reaches beyond that is sampled.
 
 Whether a point lies inside the tool at some position of an arc (:func:`arc_holds`, the front
 condition of an arc's own earlier turns) is decided from ``d^2 - rho^2``, convex over each window
@@ -380,6 +381,21 @@ def _window_min(mode, S, P, R, px, py, pz, t0, t1):
     return best
 
 
+@njit(cache=True, inline="always")
+def _round(P):
+    """Whether the lower profile ``P`` is round: each piece flat (a flat bottom at the tip) or an
+    arc about a centre at ``a >= 0`` from the axis (ball, bull-nose, an APT cutter's corner; not a
+    cone). Then ``f'(d) / d`` does not decrease, so ``F(s) = f(sqrt(s))`` is convex and
+    non-decreasing in ``s = d^2``; and ``rho(h)^2`` is concave in ``h`` (rho is concave and
+    non-decreasing, :mod:`.profile`; on an arc piece it is a + s', s' = sqrt(c^2 - (b - h)^2), so
+    rho^2 = a^2 + 2 a s' + s'^2 with s' and s'^2 concave; at the joints (rho^2)' = 2 rho rho' does
+    not grow). A cone has neither: f'(d) / d falls and rho^2 is convex."""
+    for i in range(P.shape[0]):
+        if (P[i, 0] == 0.0 and P[i, 4] != 0.0) or (P[i, 0] != 0.0 and P[i, 3] < 0.0):
+            return False
+    return True
+
+
 @njit(cache=True)
 def arc_lower(S, P, R, px, py, eps):
     """L(p) of an XY arc / helix sweep (mm); inf outside the footprint widened by ``eps``."""
@@ -408,7 +424,7 @@ def arc_lower(S, P, R, px, py, eps):
     flat = is_flat(P)  # a flat end mill's f: constant
     # convex: the value is convex over each window's part within R, of half-width wr (-1: none, only
     # the eps margin), which spans no more than cos(u) >= limit (module docstring)
-    limit = 0.0 if is_ball(P, R) else min(rho, Q) / max(rho, Q)
+    limit = 0.0 if _round(P) else min(rho, Q) / max(rho, Q)
     kr = (rho * rho + Q * Q - R * R) / (2.0 * rho * Q)
     convex = kr >= limit
     wr = math.acos(kr) if limit <= kr <= 1.0 else -1.0
@@ -451,19 +467,6 @@ def arc_depth(S, P, R, px, py, pz):
 
 
 @njit(cache=True, inline="always")
-def _rho2_concave(P):
-    """Whether rho(h)^2 is concave in h for the lower profile ``P``: each line piece is flat (a
-    flat bottom at the tip; a cone's rho is linear, its square convex). rho is concave and
-    non-decreasing (:mod:`.profile`); on an arc piece about (a, b) it is a + s, s = sqrt(c^2 - (b -
-    h)^2), so rho^2 = a^2 + 2 a s + s^2 with s and s^2 concave and a >= 0; at the pieces' joints
-    (rho^2)' = 2 rho rho' does not grow."""
-    for i in range(P.shape[0]):
-        if (P[i, 0] == 0.0 and P[i, 4] != 0.0) or (P[i, 0] != 0.0 and P[i, 3] < 0.0):
-            return False
-    return True
-
-
-@njit(cache=True, inline="always")
 def _arc_gap(S, P, px, py, pz, t):
     """d(t)^2 - rho(pz - z(t))^2 on an arc sweep (mm^2), the tip at or below ``pz``: < 0 where the point
     lies strictly inside the tool at ``t``."""
@@ -493,7 +496,7 @@ def arc_holds(S, P, R, px, py, pz, eps):
     """Whether (px, py, pz) lies inside the tool at some position of the arc sweep ``S`` by more than
     ``eps`` (mm): the least ``phi`` of :func:`arc_depth` is below ``-eps``.
 
-    Exact without sampling where ``rho^2`` is concave (:func:`_rho2_concave`: flat, ball, bull-nose)
+    Exact without sampling where ``rho^2`` is concave (:func:`_round`: flat, ball, bull-nose)
     and the windows of angle within ``R`` of the point span no more than ``cos u >= 0`` (``u`` the
     angle from the point's direction, :func:`arc_lower`): there ``d^2 = A - B cos u`` is convex in
     ``t`` and so is ``-rho(pz - z(t))^2`` (``z`` linear in ``t``), so the gap ``d^2 - rho^2``
@@ -506,7 +509,7 @@ def arc_holds(S, P, R, px, py, pz, eps):
     qx, qy = px - S[7], py - S[8]
     Q = math.sqrt(qx * qx + qy * qy)
     rho, sw = S[9], S[11]
-    if Q * rho <= 1e-15 or sw == 0.0 or not _rho2_concave(P):
+    if Q * rho <= 1e-15 or sw == 0.0 or not _round(P):
         return _window_min(1, S, P, R, px, py, pz, 0.0, 1.0) < -eps
     kr = (rho * rho + Q * Q - R * R) / (2.0 * rho * Q)
     if kr >= 1.0:
