@@ -501,9 +501,12 @@ def arc_holds(S, P, R, px, py, pz, eps):
     angle from the point's direction, :func:`arc_lower`): there ``d^2 = A - B cos u`` is convex in
     ``t`` and so is ``-rho(pz - z(t))^2`` (``z`` linear in ``t``), so the gap ``d^2 - rho^2``
     (:func:`_arc_gap`), of the sign of ``phi``, has one minimum in each window's part where the tip
-    is at or below the point, found by Brent's method to :data:`T_TOL`. ``phi`` at that least gap
-    decides, except where the gap is below 0 while ``phi`` is within ``eps`` of it: that window is
-    sampled and refined as :func:`arc_depth` does, as is every other case."""
+    is at or below the point: at an end where the slope's sign says so, else found by Brent's method
+    to :data:`T_TOL`. Inside by more than ``eps`` at ``t`` needs ``gap(t) < eps^2 - 2 eps rho(t)``, so
+    a least gap at or above that with the window's least ``rho`` rules the window out (a point on the
+    end tool's own surface has a gap of round-off at the end); ``phi`` below ``-eps`` at the least gap
+    rules it in. Otherwise the window is sampled and refined as :func:`arc_depth` does, as is every
+    other case."""
     if is_flat(P):
         return _flat_arc_depth(S, R, px, py, pz) < -eps
     qx, qy = px - S[7], py - S[8]
@@ -538,10 +541,13 @@ def arc_holds(S, P, R, px, py, pz, eps):
         ta, tb = max(min(ta, tb), tlo), min(max(ta, tb), thi)
         if ta > tb:
             continue
-        if not _arc_gap_slope(S, P, px, py, pz, tb) > 0.0:  # falling to the end (nan: sampled below)
-            t_min = tb if _arc_gap_slope(S, P, px, py, pz, tb) <= 0.0 else -1.0
-        elif not _arc_gap_slope(S, P, px, py, pz, ta) < 0.0:
-            t_min = ta if _arc_gap_slope(S, P, px, py, pz, ta) >= 0.0 else -1.0
+        ga, gb = _arc_gap_slope(S, P, px, py, pz, ta), _arc_gap_slope(S, P, px, py, pz, tb)
+        if math.isnan(ga) or math.isnan(gb):
+            t_min = -1.0  # sampled below
+        elif gb <= 0.0:  # falling to the window's end
+            t_min = tb
+        elif ga >= 0.0:
+            t_min = ta
         else:
             m = 0.5 * (ta + tb)
             st = brent_start(ta, m, tb, _arc_gap(S, P, px, py, pz, m), T_TOL * (tb - ta))
