@@ -41,7 +41,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import OUTSIDE, point_segment_distance, sweep_lower
+from fusioncut.engines.analytic.sweeps import OUTSIDE, angle_window, angle_windows, point_segment_distance, sweep_lower
 
 
 HOLD_TOL = 1e-12  # mm: how far a held sweep's path may reach beyond its holder's in held_below (the
@@ -126,8 +126,9 @@ def _arc_low_tip(S, x0, y0, x1, y1, reach):
     b0 = S[10] - math.atan2(qy, qx)
     lo, hi = min(b0, b0 + sw), max(b0, b0 + sw)
     best = math.inf
-    for k in range(int(math.ceil((lo - w) / (2.0 * math.pi))), int(math.floor((hi + w) / (2.0 * math.pi))) + 1):
-        blo, bhi = max(lo, 2.0 * math.pi * k - w), min(hi, 2.0 * math.pi * k + w)
+    k0, k1 = angle_windows(lo, hi, w)
+    for k in range(k0, k1 + 1):
+        blo, bhi = angle_window(k, lo, hi, w)
         if blo <= bhi:
             for b in (blo, bhi):  # z is linear in the angle: lowest at an end of the stretch
                 best = min(best, S[3] + (b - b0) / sw * (S[6] - S[3]))

@@ -382,6 +382,19 @@ def _window_min(mode, S, P, R, px, py, pz, t0, t1):
 
 
 @njit(cache=True, inline="always")
+def angle_windows(lo, hi, w):
+    """(k0, k1): the windows of angle ``[2 pi k - w, 2 pi k + w]`` about a point's direction, k0 <= k <=
+    k1, that can meet an arc's angles ``[lo, hi]`` measured from it (rad)."""
+    return int(math.ceil((lo - w) / (2.0 * math.pi))), int(math.floor((hi + w) / (2.0 * math.pi)))
+
+
+@njit(cache=True, inline="always")
+def angle_window(k, lo, hi, w):
+    """(blo, bhi): window ``k``'s part within ``[lo, hi]`` (rad; empty where blo > bhi)."""
+    return max(lo, 2.0 * math.pi * k - w), min(hi, 2.0 * math.pi * k + w)
+
+
+@njit(cache=True, inline="always")
 def _round(P):
     """Whether the lower profile ``P`` is round: each piece flat (a flat bottom at the tip) or an
     arc about a centre at ``a >= 0`` from the axis (ball, bull-nose, an APT cutter's corner; not a
@@ -428,11 +441,9 @@ def arc_lower(S, P, R, px, py, eps):
     kr = (rho * rho + Q * Q - R * R) / (2.0 * rho * Q)
     convex = kr >= limit
     wr = math.acos(kr) if limit <= kr <= 1.0 else -1.0
-    k0 = int(math.ceil((lo - w) / (2.0 * math.pi)))
-    k1 = int(math.floor((hi + w) / (2.0 * math.pi)))
+    k0, k1 = angle_windows(lo, hi, w)
     for k in range(k0, k1 + 1):
-        blo = max(lo, 2.0 * math.pi * k - w)
-        bhi = min(hi, 2.0 * math.pi * k + w)
+        blo, bhi = angle_window(k, lo, hi, w)
         if blo > bhi:
             continue
         ta, tb = (blo - b0) / sw, (bhi - b0) / sw
@@ -443,7 +454,7 @@ def arc_lower(S, P, R, px, py, eps):
             best = min(best, P[0, 3] + S[3] + (tb if S[6] < S[3] else ta) * (S[6] - S[3]))
         elif convex:
             tc, td = 1.0, 0.0
-            clo, chi = max(lo, 2.0 * math.pi * k - wr), min(hi, 2.0 * math.pi * k + wr)
+            clo, chi = angle_window(k, lo, hi, wr)
             if wr >= 0.0 and clo <= chi:
                 tc, td = (clo - b0) / sw, (chi - b0) / sw
                 if tc > td:
@@ -533,8 +544,9 @@ def arc_holds(S, P, R, px, py, pz, eps):
     w = math.acos(kr)
     b0 = S[10] - math.atan2(qy, qx)
     lo, hi = min(b0, b0 + sw), max(b0, b0 + sw)
-    for k in range(int(math.ceil((lo - w) / (2.0 * math.pi))), int(math.floor((hi + w) / (2.0 * math.pi))) + 1):
-        blo, bhi = max(lo, 2.0 * math.pi * k - w), min(hi, 2.0 * math.pi * k + w)
+    k0, k1 = angle_windows(lo, hi, w)
+    for k in range(k0, k1 + 1):
+        blo, bhi = angle_window(k, lo, hi, w)
         if blo > bhi:
             continue
         ta, tb = (blo - b0) / sw, (bhi - b0) / sw
