@@ -395,6 +395,19 @@ def angle_window(k, lo, hi, w):
 
 
 @njit(cache=True, inline="always")
+def window_span(k, lo, hi, w, b0, sw):
+    """(ta, tb): the path parameters, within [0, 1], of window ``k``'s part within the arc's angles
+    ``[lo, hi]`` (the angle is ``b0 + t sw`` from the point's direction); ta > tb where it is empty."""
+    blo, bhi = angle_window(k, lo, hi, w)
+    if blo > bhi:
+        return 1.0, 0.0
+    ta, tb = (blo - b0) / sw, (bhi - b0) / sw
+    if ta > tb:
+        ta, tb = tb, ta
+    return max(ta, 0.0), min(tb, 1.0)
+
+
+@njit(cache=True, inline="always")
 def _round(P):
     """Whether the lower profile ``P`` is round: each piece flat (a flat bottom at the tip) or an
     arc about a centre at ``a >= 0`` from the axis (ball, bull-nose, an APT cutter's corner; not a
@@ -443,23 +456,13 @@ def arc_lower(S, P, R, px, py, eps):
     wr = math.acos(kr) if limit <= kr <= 1.0 else -1.0
     k0, k1 = angle_windows(lo, hi, w)
     for k in range(k0, k1 + 1):
-        blo, bhi = angle_window(k, lo, hi, w)
-        if blo > bhi:
-            continue
-        ta, tb = (blo - b0) / sw, (bhi - b0) / sw
+        ta, tb = window_span(k, lo, hi, w, b0, sw)
         if ta > tb:
-            ta, tb = tb, ta
-        ta, tb = max(ta, 0.0), min(tb, 1.0)
+            continue
         if flat:  # z(t) + f is linear in t: lowest at the window's end that is lower
             best = min(best, P[0, 3] + S[3] + (tb if S[6] < S[3] else ta) * (S[6] - S[3]))
         elif convex:
-            tc, td = 1.0, 0.0
-            clo, chi = angle_window(k, lo, hi, wr)
-            if wr >= 0.0 and clo <= chi:
-                tc, td = (clo - b0) / sw, (chi - b0) / sw
-                if tc > td:
-                    tc, td = td, tc
-                tc, td = max(tc, 0.0), min(td, 1.0)
+            tc, td = window_span(k, lo, hi, wr, b0, sw) if wr >= 0.0 else (1.0, 0.0)
             best = min(best, _convex_window_min(S, P, R, px, py, ta, tb, tc, td))
         else:
             best = min(best, _window_min(0, S, P, R, px, py, 0.0, ta, tb))
@@ -546,11 +549,8 @@ def arc_holds(S, P, R, px, py, pz, eps):
     lo, hi = min(b0, b0 + sw), max(b0, b0 + sw)
     k0, k1 = angle_windows(lo, hi, w)
     for k in range(k0, k1 + 1):
-        blo, bhi = angle_window(k, lo, hi, w)
-        if blo > bhi:
-            continue
-        ta, tb = (blo - b0) / sw, (bhi - b0) / sw
-        ta, tb = max(min(ta, tb), tlo), min(max(ta, tb), thi)
+        ta, tb = window_span(k, lo, hi, w, b0, sw)
+        ta, tb = max(ta, tlo), min(tb, thi)
         if ta > tb:
             continue
         ga, gb = _arc_gap_slope(S, P, px, py, pz, ta), _arc_gap_slope(S, P, px, py, pz, tb)
