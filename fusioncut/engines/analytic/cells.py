@@ -41,7 +41,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import OUTSIDE, angle_window, angle_windows, point_segment_distance, sweep_lower
+from fusioncut.engines.analytic.sweeps import OUTSIDE, angle_windows, point_segment_distance, sweep_lower, window_span
 
 
 HOLD_TOL = 1e-12  # mm: how far a held sweep's path may reach beyond its holder's in held_below (the
@@ -128,10 +128,10 @@ def _arc_low_tip(S, x0, y0, x1, y1, reach):
     best = math.inf
     k0, k1 = angle_windows(lo, hi, w)
     for k in range(k0, k1 + 1):
-        blo, bhi = angle_window(k, lo, hi, w)
-        if blo <= bhi:
-            for b in (blo, bhi):  # z is linear in the angle: lowest at an end of the stretch
-                best = min(best, S[3] + (b - b0) / sw * (S[6] - S[3]))
+        ta, tb = window_span(k, lo, hi, w, b0, sw)
+        if ta <= tb:
+            for t in (ta, tb):  # z is linear in t: lowest at an end of the window
+                best = min(best, S[3] + t * (S[6] - S[3]))
     return best
 
 

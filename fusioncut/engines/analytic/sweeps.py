@@ -397,14 +397,15 @@ def angle_window(k, lo, hi, w):
 @njit(cache=True, inline="always")
 def window_span(k, lo, hi, w, b0, sw):
     """(ta, tb): the path parameters, within [0, 1], of window ``k``'s part within the arc's angles
-    ``[lo, hi]`` (the angle is ``b0 + t sw`` from the point's direction); ta > tb where it is empty."""
+    ``[lo, hi]`` (the angle is ``b0 + t sw`` from the point's direction); ta > tb only where it is
+    empty (both ends are held within [0, 1], so a window of one angle at the arc's end stays one)."""
     blo, bhi = angle_window(k, lo, hi, w)
     if blo > bhi:
         return 1.0, 0.0
     ta, tb = (blo - b0) / sw, (bhi - b0) / sw
     if ta > tb:
         ta, tb = tb, ta
-    return max(ta, 0.0), min(tb, 1.0)
+    return min(max(ta, 0.0), 1.0), min(max(tb, 0.0), 1.0)
 
 
 @njit(cache=True, inline="always")
