@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import signal
 import socket
 import subprocess
@@ -56,7 +57,27 @@ def tiny_total() -> int:
     return len(cl_segments(tp.moves, TINY_JOB["options"]["max_segment_length"], 1e-3))
 
 
+def _ephemeral_range() -> tuple[int, int]:
+    try:
+        lo, hi = map(int, open("/proc/sys/net/ipv4/ip_local_port_range").read().split())
+        return lo, hi
+    except (OSError, ValueError):
+        return 32768, 60999
+
+
 def free_port() -> int:
+    """A free loopback port outside the kernel's ephemeral range, so that no socket bound to port 0 (the
+    embedded Dask cluster's scheduler, nannies and workers start before the service binds) can take it
+    between this choice and the service's bind. Falls back on a port the kernel hands out."""
+    lo, hi = _ephemeral_range()
+    candidates = [p for p in range(20000, 32000) if not lo <= p <= hi]
+    for port in random.sample(candidates, min(50, len(candidates))):
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
@@ -65,17 +86,24 @@ def free_port() -> int:
 class ServiceProcess:
     def __init__(self, data_dir: Path, *, workers: int = 1, env: dict[str, str] | None = None):
         self.data_dir = data_dir
-        self.port = free_port()
-        self.url = f"http://127.0.0.1:{self.port}"
-        self.log_path = data_dir.parent / f"service-{self.port}.log"
         inherited = {k: v for k, v in os.environ.items() if not k.startswith("FUSIONCUT_")}  # no stray settings
         full_env = {**inherited, "FUSIONCUT_API_KEYS": f"{KEY_A},{KEY_B}", "PYTHONUNBUFFERED": "1", **(env or {})}
-        self._log = open(self.log_path, "w")
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "fusioncut.service", "--host", "127.0.0.1", "--port", str(self.port),
-             "--workers", str(workers), "--data-dir", str(data_dir), "--log-level", "info"],
-            stdout=self._log, stderr=subprocess.STDOUT, env=full_env, start_new_session=True)
-        self._wait_ready()
+        for attempt in range(3):  # another process on the machine may still take the port first
+            self.port = free_port()
+            self.url = f"http://127.0.0.1:{self.port}"
+            self.log_path = data_dir.parent / f"service-{self.port}.log"
+            self._log = open(self.log_path, "w")
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "fusioncut.service", "--host", "127.0.0.1", "--port", str(self.port),
+                 "--workers", str(workers), "--data-dir", str(data_dir), "--log-level", "info"],
+                stdout=self._log, stderr=subprocess.STDOUT, env=full_env, start_new_session=True)
+            try:
+                self._wait_ready()
+                return
+            except RuntimeError:
+                if attempt == 2 or "address already in use" not in self.log():
+                    raise
+                self.stop()
 
     def _wait_ready(self, timeout: float = 120) -> None:
         deadline = time.monotonic() + timeout
