@@ -71,12 +71,14 @@ def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
 
 @njit(cache=True)
 def crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb):
-    """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; and the index (in the
+    """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; the index (in the
     cell's rows: 0 the CL's own sweep, j + 1 the earlier sweep ``C[j]``) of the sweep whose curve
-    makes each one (-1 for lo and hi). A crossing of an earlier sweep's curve where nothing is removed
+    makes each one (-1 for lo and hi); and whether that curve is a rim (:func:`boundary_curves`).
+    A crossing of an earlier sweep's curve where nothing is removed
     around it (:func:`nothing_removed_near`) is left out."""
     out = [lo, hi]
     own = [-1.0, -1.0]
+    rim = [1.0, 1.0]  # a cell's edge may be where its CL's footprint box touches a rim
     for i in range(circles.shape[0]):
         u = x - circles[i, 0]
         s = circles[i, 2] * circles[i, 2] - u * u
@@ -87,6 +89,7 @@ def crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb
                 if lo < y < hi and not (j >= 0 and nothing_removed_near(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
                     out.append(y)
                     own.append(circles[i, 3])
+                    rim.append(circles[i, 4])
     for i in range(segments.shape[0]):
         x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
         if x1 != x0 and min(x0, x1) <= x <= max(x0, x1):
@@ -95,42 +98,51 @@ def crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb
             if lo < y < hi and not (j >= 0 and nothing_removed_near(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
                 out.append(y)
                 own.append(segments[i, 4])
+                rim.append(segments[i, 5])
     pts = np.array(out)
     order = np.argsort(pts, kind="mergesort")
-    return pts[order], np.array(own)[order]
+    return pts[order], np.array(own)[order], np.array(rim)[order]
 
 
-def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]]) -> tuple[np.ndarray, np.ndarray]:
-    """Circles (cx, cy, r, owner) and segments (x0, y0, x1, y1, owner) where the lower surfaces of
-    the sweeps ``rows`` may jump or bend: for each sweep, at each radius of ``radii_of[i]`` (its
-    tool's R and the radii where its profile has a corner), for a stock's outside its circle;
-    ``owner`` is the sweep's index in ``rows``."""
+def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]],
+                    rims: list[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Circles (cx, cy, r, owner, rim) and segments (x0, y0, x1, y1, owner, rim) where the lower
+    surfaces of the sweeps ``rows`` may jump or bend: for each sweep, at each radius of
+    ``radii_of[i]`` (its tool's R and the radii where its profile has a corner), for a stock's
+    outside its circle; ``owner`` is the sweep's index in ``rows``; ``rim`` is 1 on the curves at
+    ``rims[i]`` (:func:`.profile.rim_radius`, nan: none) that bound the footprint, where the lower
+    surface rises like the square root of the distance (a line's end circles and sides, an arc's
+    circles about its centre and its ends' circles), else 0."""
     circles: list[tuple[float, ...]] = []
     segments: list[tuple[float, ...]] = []
-    for owner, (row, radii) in enumerate(zip(rows, radii_of)):
+    if rims is None:
+        rims = [math.nan] * len(rows)
+    for owner, (row, radii, rim) in enumerate(zip(rows, radii_of, rims)):
         if row[0] == OUTSIDE:
-            circles.append((row[7], row[8], row[9], owner))
+            circles.append((row[7], row[8], row[9], owner, 0.0))
             continue
         x0, y0, x1, y1 = row[1], row[2], row[4], row[5]
         for r in radii:
-            circles += [(x0, y0, r, owner), (x1, y1, r, owner)]
+            edge = 1.0 if r == rim else 0.0
+            circles += [(x0, y0, r, owner, edge), (x1, y1, r, owner, edge)]
             if row[0] == 0.0:
                 ux, uy = x1 - x0, y1 - y0
                 n = math.hypot(ux, uy)
                 if n > 0:
                     nx, ny = -uy / n * r, ux / n * r
-                    segments += [(x0 + nx, y0 + ny, x1 + nx, y1 + ny, owner),
-                                 (x0 - nx, y0 - ny, x1 - nx, y1 - ny, owner)]
+                    segments += [(x0 + nx, y0 + ny, x1 + nx, y1 + ny, owner, edge),
+                                 (x0 - nx, y0 - ny, x1 - nx, y1 - ny, owner, edge)]
             else:
                 cx, cy, rho, a0, sw = row[7], row[8], row[9], row[10], row[11]
-                circles.append((cx, cy, rho + r, owner))
+                circles.append((cx, cy, rho + r, owner, edge))
                 if rho > r:
-                    circles.append((cx, cy, rho - r, owner))
+                    circles.append((cx, cy, rho - r, owner, edge))
                 for a in (a0, a0 + sw):
                     ca, sa = math.cos(a), math.sin(a)
                     lo = max(rho - r, 0.0)
-                    segments.append((cx + lo * ca, cy + lo * sa, cx + (rho + r) * ca, cy + (rho + r) * sa, owner))
-    return (np.array(circles, dtype=np.float64).reshape(-1, 4), np.array(segments, dtype=np.float64).reshape(-1, 5))
+                    segments.append((cx + lo * ca, cy + lo * sa, cx + (rho + r) * ca, cy + (rho + r) * sa, owner,
+                                     0.0))
+    return (np.array(circles, dtype=np.float64).reshape(-1, 5), np.array(segments, dtype=np.float64).reshape(-1, 6))
 
 
 @njit(cache=True)

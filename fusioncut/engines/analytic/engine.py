@@ -67,7 +67,7 @@ from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
-from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
+from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, rim_radius, profile_height,
                                                profile_radius, profile_radius_slope, upper_parts)
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, line_row, outside_row
 from fusioncut.engines.analytic.volume import removed_volume
@@ -544,7 +544,8 @@ class AnalyticEngine:
             Ct, CBt = Cm[order], CBm[order]
             rows = np.vstack([row[None, :], Ct])
             radii = [_break_radii(r, P[int(r[12]), :NP[int(r[12])]], (s[2], s[5])) for r in rows]
-            circles, segments = boundary_curves(rows, radii)
+            rims = [rim_radius(P[int(r[12]), :NP[int(r[12])]]) for r in rows]
+            circles, segments = boundary_curves(rows, radii, rims)
             xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct, CBt, P, NP,
                           RR, s[2])
             v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,

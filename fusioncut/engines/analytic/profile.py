@@ -163,6 +163,16 @@ def corner_radii(pieces: np.ndarray, tol: float = 1e-9) -> tuple[float, ...]:
     return tuple(out)
 
 
+def rim_radius(pieces: np.ndarray, tol: float = 1e-9) -> float:
+    """``R`` where ``f`` ends standing vertical (a ball's or bull-nose's corner arc reaching its
+    rightmost point there: a sweep's lower surface then rises like the square root of the distance
+    to its footprint's edge), else nan (a flat bottom or a cone meeting the wall at an angle)."""
+    last = pieces[-1]
+    if last[0] == ARC and abs(last[3] + last[5] - last[2]) <= tol * max(1.0, last[2]):
+        return float(last[2])
+    return math.nan
+
+
 @njit(cache=True, inline="always")
 def profile_height(P, d):
     """f(d): height (mm above the tip) of the tool's lowest point at radial distance ``d``; d beyond

@@ -249,9 +249,10 @@ def _kink(x, lo, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 
 @njit(cache=True)
-def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
-    """(``pts`` with the kinks of the removed height along the line at ``x`` added, and per stretch
-    between them whether anything may be removed there). A stretch :func:`_nothing_removed` proves
+def _with_kinks(x, pts, owners, rims, S, P, R, C, CB, PP, NPC, RR, zb, zt):
+    """(``pts`` with the kinks of the removed height along the line at ``x`` added; per stretch
+    between them whether anything may be removed there; per point whether it is a rim's crossing
+    (``rims``, :func:`.breaks.crossings_at_x`; a kink is none)). A stretch :func:`_nothing_removed` proves
     empty is kept whole; in the others the state and its margin (:func:`_probe`) are probed at even
     samples (:data:`N_PROBE` + 1 at least, :data:`PROBE_STEP` tool radii apart at most), each change
     located (:func:`_kink`; several between two probes one after the other, :data:`CLUSTER` of
@@ -265,6 +266,7 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     (``owners``, as :func:`.breaks.crossings_at_x` gives them) is neither the CL's own sweep's nor that of
     the sweep giving ``h`` there: the removed height is then smooth across it."""
     out = [pts[0]]
+    rim = [False]
     live = []
     last = -1  # the state all probes of the last stretch had (-1: none, or a change within it)
     for p in range(pts.shape[0] - 1):
@@ -273,6 +275,7 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             continue
         if _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             out.append(b)
+            rim.append(rims[p + 1] > 0.0)
             live.append(False)
             last = -1
             continue
@@ -305,16 +308,19 @@ def _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt):
                         kinks.append(_kink(x, y, ys[i + 1], s1, sts[i], S, P, R, C, CB, PP, NPC, RR, zb, zt))
             for y in np.sort(np.array(kinks[1:])):
                 out.append(y)
+                rim.append(True)
                 live.append(True)
             uniform = sts[0] if len(kinks) == 1 else -1
         owner = int(owners[p])
         if uniform > 0 and uniform == last and owner > 0 and owner != (uniform - 3) // 2 + 1:
             out[-1] = b  # the last stretch goes on through this one
+            rim[-1] = rims[p + 1] > 0.0
         else:
             out.append(b)
+            rim.append(rims[p + 1] > 0.0)
             live.append(True)
         last = uniform
-    return np.array(out), np.array(live, dtype=np.bool_)
+    return np.array(out), np.array(live, dtype=np.bool_), np.array(rim, dtype=np.bool_)
 
 
 @njit(cache=True)
@@ -371,6 +377,26 @@ def _smooth(a, b, u):
 
 
 @njit(cache=True, inline="always")
+def _ends_map(a, b, u, ra, rb):
+    """The point of [a, b] at the Gauss node ``u`` in [-1, 1] and the weight factor dy/du, under a map
+    whose slope is zero at each end flagged (``ra``, ``rb``) and not at the others: :func:`_smooth`
+    at two, y = a + (b - a) s^2 or b - (b - a) (1 - s)^2 at one, the linear map at none
+    (s = (u + 1) / 2). Flagged are the ends where a square root of the distance may start or lie just
+    beyond: a rim (:func:`.breaks.boundary_curves`), a cell's edge (its CL's footprint box touches a
+    rim there), a kink (the surfaces crossing there may have their rims just past it). A part's end
+    where the adaptive rule halved it is none: the integrand is smooth across it, and a zero slope
+    there would spend nodes on it."""
+    if ra and rb:
+        return _smooth(a, b, u)
+    s = 0.5 * (u + 1.0)
+    if ra:
+        return a + (b - a) * s * s, (b - a) * s
+    if rb:
+        return b - (b - a) * (1.0 - s) * (1.0 - s), (b - a) * (1.0 - s)
+    return a + (b - a) * s, 0.5 * (b - a)
+
+
+@njit(cache=True, inline="always")
 def _node(i):
     """Gauss-Kronrod node i of 15 on [-1, 1] (pairs +-x_j for i < 14, the centre last), its Kronrod
     weight and its Gauss weight (0 at the Kronrod-only nodes)."""
@@ -402,7 +428,7 @@ def _band_overlaps(low, v, edges, out, w):
 
 
 @njit(cache=True)
-def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb, change):
+def _gk_y(x, a, b, ra, rb, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb, change):
     """Gauss-Kronrod on y in [a, b] at ``x``: (the integral, its error); the Kronrod sums of the
     removed height within each band of ``edges`` are added to ``kb``. ``change`` gets the first
     place along y where the nodes' :func:`_state` changes: (the two nodes' y, their states), or a
@@ -414,7 +440,7 @@ def _gk_y(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, kb, change):
     sts = np.empty(15, dtype=np.int64)
     for i in range(15):
         u, wk, wg = _node(i)
-        y, w = _smooth(a, b, u)
+        y, w = _ends_map(a, b, u, ra, rb)
         v, cause, own = height_and_cause(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
         f = v * w
         k += wk * f
@@ -454,20 +480,23 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
     or ``rel`` of itself, whichever is looser;
     the same integral of the removed height within each band of ``edges`` (its error not controlled
     on its own: it shares the whole integral's nodes))."""
-    pts, owners = crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)
-    pts, live = _with_kinks(x, pts, owners, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+    pts, owners, rims = crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)
+    pts, live, rim = _with_kinks(x, pts, owners, rims, S, P, R, C, CB, PP, NPC, RR, zb, zt)
     nb = max(edges.shape[0] - 1, 0)
     lo = np.empty(_PANELS)
     hi = np.empty(_PANELS)
     val = np.empty(_PANELS)
     err = np.empty(_PANELS)
+    ra = np.empty(_PANELS, dtype=np.bool_)
+    rb = np.empty(_PANELS, dtype=np.bool_)
     bands = np.zeros((_PANELS, nb))
     changes = np.empty((_PANELS, 4))
     n = 0
     for p in range(pts.shape[0] - 1):
         if live[p] and n < _PANELS:
-            lo[n], hi[n] = pts[p], pts[p + 1]
-            val[n], err[n] = _gk_y(x, lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n], changes[n])
+            lo[n], hi[n], ra[n], rb[n] = pts[p], pts[p + 1], rim[p], rim[p + 1]
+            val[n], err[n] = _gk_y(x, lo[n], hi[n], ra[n], rb[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n],
+                                   changes[n])
             n += 1
     while n < _PANELS:
         k, total, value = _worst(err, val, n)
@@ -480,16 +509,21 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
         # a kink the probes missed (a narrow crescent of removed material between two of them) is
         # split at, found between the nodes that straddle it; else the part is halved
         m = 0.5 * (a + b)
+        at_kink = False
         c = changes[k]
         if c[2] >= 0.0:
             y = _kink(x, c[0], c[1], int(c[2]), int(c[3]), S, P, R, C, CB, PP, NPC, RR, zb, zt)
             if a + MIN_PART < y < b - MIN_PART:
                 m = y
+                at_kink = True
         hi[k] = m
+        lo[n], hi[n], ra[n], rb[n] = m, b, at_kink, rb[k]
+        rb[k] = at_kink
         bands[k] = 0.0
-        val[k], err[k] = _gk_y(x, a, m, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[k], changes[k])
-        lo[n], hi[n] = m, b
-        val[n], err[n] = _gk_y(x, m, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n], changes[n])
+        val[k], err[k] = _gk_y(x, a, m, ra[k], rb[k], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[k],
+                               changes[k])
+        val[n], err[n] = _gk_y(x, m, b, ra[n], rb[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n],
+                               changes[n])
         n += 1
     return val[:n].sum(), bands[:n].sum(axis=0)
 

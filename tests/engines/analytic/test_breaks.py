@@ -49,7 +49,7 @@ def test_the_edge_of_a_pass_under_a_lower_one_is_no_break_point():
     args = (own, FLAT.pieces, FLAT.radius, C, CB, PP, NPC, RR, -10.0)
     assert nothing_removed_near(0, 0, 0.0, -1.0, *args)  # the older pass's edge, under the last pass
     assert not nothing_removed_near(1, 1, 0.0, 1.0, *args)  # the last pass's edge: it gives the top there
-    pts, owners = crossings_at_x(0.0, circles, segments, -10.0, 10.0, *args)
+    pts, owners, _ = crossings_at_x(0.0, circles, segments, -10.0, 10.0, *args)
     assert pts.tolist() == [-10.0, -3.0, 1.0, 3.0, 10.0] and owners.tolist() == [-1.0, 0.0, 2.0, 0.0, -1.0]
 
 
@@ -61,10 +61,10 @@ def test_crossings_inside_a_deeper_sweep_are_no_break_points():
     shallow = line_row((-20, 0, -1), (20, 0, -1), 0)
     deep = line_row((0, -20, -5), (0, 20, -5), 0)
     C, CB, circles, segments = _case(own, deep, shallow)
-    pts, owners = crossings_at_x(1.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
+    pts, owners, _ = crossings_at_x(1.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
                                   NPC, RR, -10.0)
     assert pts.tolist() == [-10.0, -3.0, 3.0, 10.0] and owners.tolist() == [-1.0, 0.0, 0.0, -1.0]
-    pts, owners = crossings_at_x(5.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
+    pts, owners, _ = crossings_at_x(5.0, circles, segments, -10.0, 10.0, own, FLAT.pieces, FLAT.radius, C, CB, PP,
                                   NPC, RR, -10.0)
     assert owners.tolist().count(2.0) == 2  # beside the deep pass the shallow one's edges count
 
