@@ -33,8 +33,13 @@ With ``u`` the angle from the direction of ``p`` (at XY distance ``Q`` from the 
 ``d^2 = A - B cos u`` (``A = rho^2 + Q^2``, ``B = 2 rho Q``), and ``d`` is convex in ``u`` while
 ``cos u >= min(rho, Q) / max(rho, Q)`` (``d'' >= 0`` iff ``2 A cos u - B cos^2 u - B >= 0``), so then
 is ``f(d)`` (``f`` convex, non-decreasing); a round profile's (ball, bull-nose: :func:`_round`)
-``f(d) = F(d^2)`` with ``F`` convex and non-decreasing is convex further, while ``cos u >= 0``. A
-window's part within ``R`` that reaches beyond that is sampled.
+``f(d) = F(d^2)`` with ``F`` convex and non-decreasing is convex further, while ``cos u >= 0``. Where a
+round profile's window within ``R`` reaches beyond that (the path's circle passes round ``p``, ``rho <
+R``), its near half is minimised so and its far parts (``cos u <= 0``, where ``d`` grows towards
+``u = pi``) by branch and bound on ``min z + f(min d)`` over sub-intervals (:func:`_far_min`); another
+profile's window that reaches beyond its convex part is sampled. A helix of more than a turn is lowest
+on its last turn going down (first going up): each tool position lies a pitch below the one a turn
+before above the same place.
 
 Whether a point lies inside the tool at some position of an arc (:func:`arc_holds`, the front
 condition of an arc's own earlier turns) is decided from ``d^2 - rho^2``, convex over each window
@@ -57,13 +62,13 @@ import math
 import numpy as np
 from numba import njit
 
+from fusioncut.engines.analytic.brent import brent_best, brent_next, brent_start, brent_take
 from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope, profile_slope
 
 SWEEP_COLUMNS = ("kind", "x0", "y0", "z0", "x1", "y1", "z1", "cx", "cy", "rho", "a0", "sw", "tool")
 NCOL = len(SWEEP_COLUMNS)
 LINE, ARC, OUTSIDE = 0.0, 1.0, 2.0
 ARC_STEP = 0.05  # rad: the arc windows' sampling step
-_GOLDEN = 0.6180339887498949
 _BISECTIONS = 64
 VALUE_TOL = 1e-13  # mm: the error bound of a line sweep's lower surface (module docstring)
 _BRENT_STEPS = 100  # a bound only: Brent's golden steps alone reach T_TOL in under 50
@@ -282,70 +287,6 @@ def _convex_window_min(S, P, R, px, py, ta, tb, tc, td):
     return min(best, _convex_min(S, P, R, px, py, tc, td))
 
 
-# Brent's minimisation (parabolic steps through the three best points, golden-section steps where
-# a parabola's would not shrink the bracket fast enough) as a stepper, so that each caller evaluates
-# its own function and may stop early: state = [a, b, x, w, v, fx, fw, fv, d, e, tol], x the best
-# point so far, [a, b] the bracket
-_A, _B, _X, _W, _V, _FX, _FW, _FV, _D, _E, _TOL = range(11)
-
-
-@njit(cache=True, inline="always")
-def brent_start(a, x, b, fx, tol):
-    """Brent's state on the bracket [a, b] around ``x`` (value ``fx``), to stop once the bracket is
-    within ``tol`` of the best point."""
-    return np.array([a, b, x, x, x, fx, fx, fx, 0.0, 0.0, tol + 1e-300])
-
-
-@njit(cache=True, inline="always")
-def brent_next(st):
-    """The next point to evaluate, or nan once the bracket is within its tolerance."""
-    a, b, x, w, v, fx, fw, fv, d, e, tol = st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], st[8], st[9], st[10]
-    m = 0.5 * (a + b)
-    if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):
-        return math.nan
-    golden = True
-    if abs(e) > tol:
-        r = (x - w) * (fx - fv)
-        q = (x - v) * (fx - fw)
-        p = (x - v) * q - (x - w) * r
-        q = 2.0 * (q - r)
-        if q > 0.0:
-            p = -p
-        q = abs(q)
-        if abs(p) < abs(0.5 * q * e) and p > q * (a - x) and p < q * (b - x):
-            e, d = d, p / q
-            golden = False
-            if x + d - a < 2.0 * tol or b - (x + d) < 2.0 * tol:
-                d = tol if x < m else -tol
-    if golden:
-        e = (a - x) if x >= m else (b - x)
-        d = (1.0 - _GOLDEN) * e
-    st[_D], st[_E] = d, e
-    return x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
-
-
-@njit(cache=True, inline="always")
-def brent_take(st, u, fu):
-    """Take the value ``fu`` at the point ``u`` :func:`brent_next` gave."""
-    x = st[_X]
-    if fu <= st[_FX]:
-        if u >= x:
-            st[_A] = x
-        else:
-            st[_B] = x
-        st[_V], st[_FV], st[_W], st[_FW] = st[_W], st[_FW], x, st[_FX]
-        st[_X], st[_FX] = u, fu
-    else:
-        if u < x:
-            st[_A] = u
-        else:
-            st[_B] = u
-        if fu <= st[_FW] or st[_W] == x:
-            st[_V], st[_FV], st[_W], st[_FW] = st[_W], st[_FW], u, fu
-        elif fu <= st[_FV] or st[_V] == x or st[_V] == st[_W]:
-            st[_V], st[_FV] = u, fu
-
-
 @njit(cache=True)
 def _bracket_min(mode, S, P, R, px, py, pz, a, x, b, fx):
     """The least value of :func:`_arc_value` found by Brent's minimisation (:func:`brent_next`) in
@@ -359,7 +300,7 @@ def _bracket_min(mode, S, P, R, px, py, pz, a, x, b, fx):
         if math.isnan(u):
             break
         brent_take(st, u, _arc_value(mode, S, P, R, px, py, pz, u))
-    return st[_FX]
+    return brent_best(st)[1]
 
 
 @njit(cache=True)
@@ -399,13 +340,65 @@ def window_span(k, lo, hi, w, b0, sw):
     """(ta, tb): the path parameters, within [0, 1], of window ``k``'s part within the arc's angles
     ``[lo, hi]`` (the angle is ``b0 + t sw`` from the point's direction); ta > tb only where it is
     empty (both ends are held within [0, 1], so a window of one angle at the arc's end stays one)."""
-    blo, bhi = angle_window(k, lo, hi, w)
+    return angle_span(2.0 * math.pi * k - w, 2.0 * math.pi * k + w, lo, hi, b0, sw)
+
+
+@njit(cache=True, inline="always")
+def angle_span(alo, ahi, lo, hi, b0, sw):
+    """(ta, tb): the path parameters, within [0, 1], of the angles ``[alo, ahi]`` within ``[lo, hi]``
+    (as :func:`window_span`)."""
+    blo, bhi = max(lo, alo), min(hi, ahi)
     if blo > bhi:
         return 1.0, 0.0
     ta, tb = (blo - b0) / sw, (bhi - b0) / sw
     if ta > tb:
         ta, tb = tb, ta
     return min(max(ta, 0.0), 1.0), min(max(tb, 0.0), 1.0)
+
+
+@njit(cache=True)
+def _far_min(S, P, R, px, py, ta, tb, best):
+    """min(``best``, the least of z(t) + f(min(d(t), R)) over [ta, tb]), a part of an arc's window on
+    the far side of the path's circle from the point (cos u <= 0, u the angle from the point's
+    direction), by branch and bound. There ``d`` grows towards u = pi, so over any sub-interval it is
+    least at an end, and z is linear: the value is at least min(z) + f(min(d)) at its ends, and an
+    interval whose bound is not below the best value found is dropped. One wider than
+    :data:`ARC_STEP` rad is halved (the value taken at the halving point, the lower-bounded half
+    searched first); a narrower one is refined by Brent from the lowest of its ends and midpoint
+    (:func:`_bracket_min`, as :func:`_window_min` refines its samples)."""
+    if ta > tb:
+        return best
+    span = abs(S[11])
+    dz = S[6] - S[3]
+    va = _arc_value(0, S, P, R, px, py, 0.0, ta)
+    vb = _arc_value(0, S, P, R, px, py, 0.0, tb)
+    best = min(best, va, vb)
+    stack = np.empty((64, 4))  # intervals [a, b] with their values at a and b
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = ta, tb, va, vb
+    n = 1
+    while n > 0:
+        n -= 1
+        a, b, va, vb = stack[n, 0], stack[n, 1], stack[n, 2], stack[n, 3]
+        za, zb = S[3] + a * dz, S[3] + b * dz
+        fa, fb = va - za, vb - zb  # f(min(d, R)) at the ends: the least f over [a, b] is the lesser
+        if min(za, zb) + min(fa, fb) >= best:
+            continue
+        m = 0.5 * (a + b)
+        vm = _arc_value(0, S, P, R, px, py, 0.0, m)
+        best = min(best, vm)
+        if (b - a) * span <= ARC_STEP or n > 61:
+            x, fx = (m, vm) if vm <= min(va, vb) else ((a, va) if va <= vb else (b, vb))
+            best = min(best, _bracket_min(0, S, P, R, px, py, 0.0, a, x, b, fx))
+            continue
+        zm = S[3] + m * dz
+        lower_first = min(za, zm) + min(fa, vm - zm) <= min(zm, zb) + min(vm - zm, fb)
+        for h in range(2):  # the half with the larger bound first onto the stack: the other is searched first
+            if (h == 0) == lower_first:
+                stack[n, 0], stack[n, 1], stack[n, 2], stack[n, 3] = m, b, vm, vb
+            else:
+                stack[n, 0], stack[n, 1], stack[n, 2], stack[n, 3] = a, m, va, vm
+            n += 1
+    return best
 
 
 @njit(cache=True, inline="always")
@@ -442,6 +435,15 @@ def arc_lower(S, P, R, px, py, eps):
     b0 = S[10] - psi
     b1 = b0 + sw
     lo, hi = min(b0, b1), max(b0, b1)
+    if abs(sw) > 2.0 * math.pi and S[6] != S[3]:
+        # a helix of more than a turn: each tool position of a turn is a pitch lower than the one a turn
+        # before above the same place, so the least lower surface is on its last turn (going down) or
+        # its first (going up)
+        first = S[6] > S[3]
+        if (sw > 0.0) == first:
+            hi = lo + 2.0 * math.pi
+        else:
+            lo = hi - 2.0 * math.pi
     if S[6] == S[3]:  # level: lowest where the arc passes nearest p, the direction of p or an end
         d = _circle_nearest(Q, rho, lo, hi)
         if d > Re:
@@ -465,6 +467,17 @@ def arc_lower(S, P, R, px, py, eps):
         elif convex:
             tc, td = window_span(k, lo, hi, wr, b0, sw) if wr >= 0.0 else (1.0, 0.0)
             best = min(best, _convex_window_min(S, P, R, px, py, ta, tb, tc, td))
+        elif limit == 0.0:
+            # a round profile whose window within R reaches past cos u = 0 (the path's circle passes
+            # round the point, rho < R): convex on the near half, all within R; the far parts bounded
+            tn, tm = window_span(k, lo, hi, 0.5 * math.pi, b0, sw)
+            if tn <= tm:
+                best = min(best, _convex_window_min(S, P, R, px, py, tn, tm, tn, tm))
+            c = 2.0 * math.pi * k
+            fa, fb = angle_span(c + 0.5 * math.pi, c + w, lo, hi, b0, sw)
+            best = _far_min(S, P, R, px, py, fa, fb, best)
+            fa, fb = angle_span(c - w, c - 0.5 * math.pi, lo, hi, b0, sw)
+            best = _far_min(S, P, R, px, py, fa, fb, best)
         else:
             best = min(best, _window_min(0, S, P, R, px, py, 0.0, ta, tb))
     return best
@@ -569,7 +582,7 @@ def arc_holds(S, P, R, px, py, pz, eps):
                 if math.isnan(u):
                     break
                 brent_take(st, u, _arc_gap(S, P, px, py, pz, u))
-            t_min = st[_X]
+            t_min = brent_best(st)[0]
         if t_min >= 0.0:
             gap = _arc_gap(S, P, px, py, pz, t_min)
             # inside by more than eps at t needs gap(t) < eps^2 - 2 eps rho(t), and rho(t) >= rho at

@@ -44,9 +44,9 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.breaks import crossings_at_x
+from fusioncut.engines.analytic.brent import brent_next, brent_start, brent_take
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import (brent_next, brent_start, brent_take, point_segment_distance,
-                                              sweep_floor, sweep_lower)
+from fusioncut.engines.analytic.sweeps import point_segment_distance, sweep_floor, sweep_lower
 
 MIN_PART = 1e-9  # mm
 N_PROBE = 8  # samples a stretch between break points is probed at for kinks
@@ -55,6 +55,11 @@ MAX_PROBES = 64  # probes a stretch, a bound
 MARGIN_TOL = 1e-9  # mm: a dip of the state's margin is searched only above this (equal surfaces, a
 # retraced pass, would show dips of round-off)
 KINK_TOL = 1e-12  # mm: a kink's place along a line
+SAME_TOL = 1e-11  # mm: surfaces this close are one to the integrand's state (_code): a removed height this
+# small is none, and a later sweep gives h only where it is this far below the earlier ones. A pass retraced
+# at its own height (a circle gone round again, a helix run out on a level circle at its foot) leaves
+# surfaces equal up to round-off, where the state would flicker from node to node (the removed height is
+# integrated as it is: only where its parts meet is decided with this margin)
 X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
 MAX_CHANGES = 2  # changes of state located between two probes, one after the other; more are left to the adaptive
 # rule (each located one costs a part of its own, more than a kink of little weight costs inside one)
@@ -97,8 +102,9 @@ def height_and_cause(px, py, S, P, R, C, CB, PP, NPC, RR, z_bottom, z_top):
             continue  # its lower surface is nowhere below what is already the least
         h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], px, py, 0.0)
         if h < high:
+            if h < high - SAME_TOL:
+                cause = j
             high = h
-            cause = j
             if high <= low:
                 return 0.0, cause, own
     return (high - low if high > low else 0.0), cause, own
@@ -116,7 +122,7 @@ def _state(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 @njit(cache=True, inline="always")
 def _code(v, cause, own, zb):
     """:func:`_state`'s code of a removed height ``v`` given by sweep ``cause`` over ``L = own``."""
-    return 0 if v <= 0.0 else 3 + 2 * cause + (1 if own < zb else 0)
+    return 0 if v <= SAME_TOL else 3 + 2 * cause + (1 if own < zb else 0)
 
 
 @njit(cache=True)
@@ -145,20 +151,21 @@ def _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt):
             continue
         h = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], x, y, 0.0)
         if h < h1:
+            if h < h1 - SAME_TOL:
+                cause = j
             h1, h2 = h, h1
-            cause = j
         elif h < h2:
             h2 = h
-    if h1 <= low:
-        return 0, low - h1, h1 - low
-    return _code(h1 - low, cause, own, zb), min(h1 - low, h2 - h1, abs(own - zb)), h1 - low
+    if h1 - low <= SAME_TOL:
+        return 0, low - h1 + SAME_TOL, h1 - low
+    return _code(h1 - low, cause, own, zb), min(h1 - low - SAME_TOL, h2 - h1, abs(own - zb)), h1 - low
 
 
 @njit(cache=True)
 def _dip(x, a, m, b, fm, s0, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     """A place in (a, b) of another state than ``s0``, found from the probe ``m`` between ``a`` and
     ``b`` whose margin ``fm`` (:func:`_probe`) is below both of theirs, all three in state ``s0``; nan
-    where none is found. Brent's minimisation of the margin (:func:`.sweeps.brent_next`), stopped
+    where none is found. Brent's minimisation of the margin (:func:`.brent.brent_next`), stopped
     at the first other state or when the bracket is 1e-9 of its first width: a narrow crescent of
     removed material, or of another sweep's floor, between two probes sits in such a dip (the margin
     is a difference of smooth surfaces, a V where two earlier sweeps cross)."""
@@ -183,7 +190,7 @@ def _gap(x, y, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
     ``h`` on the other); another sweep gives ``h``: the two causes' heights (the top for -1); ``L``
     passes the bottom: ``L`` - bottom. NaN where the change is of another kind."""
     if s0 == 0 or s1 == 0:
-        return _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)[2]
+        return _probe(x, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)[2] - SAME_TOL
     c0, c1 = (s0 - 3) // 2, (s1 - 3) // 2
     if c0 != c1 and (s0 - 3) % 2 == (s1 - 3) % 2:
         h0, h1 = zt, zt
@@ -193,7 +200,7 @@ def _gap(x, y, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
         if c1 >= 0:
             k = int(C[c1, 12])
             h1 = sweep_lower(C[c1], PP[k, :NPC[k]], RR[k], x, y, 0.0)
-        return h0 - h1
+        return h0 - h1 - (SAME_TOL if c0 < c1 else -SAME_TOL)  # the later sweep gives h SAME_TOL below
     if c0 == c1:
         return sweep_lower(S, P, R, x, y, 0.0) - zb
     return math.nan
@@ -558,12 +565,10 @@ def _signature(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, 
     last = np.int64(-2)
     for p in range(pts.shape[0] - 1):
         a, b = pts[p], pts[p + 1]
-        if b - a <= 0.0:
-            continue
-        if _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt):
-            n = 0
-        else:
-            n = N_PROBE if b - a > 4 * KINK_TOL else 0
+        if b - a <= 4 * KINK_TOL:
+            continue  # no state of its own: where two crossings all but coincide (nearly tangent curves) it
+            # would come and go from line to line
+        n = 0 if _nothing_removed(x, a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt) else N_PROBE
         for i in range(n + 1):
             st = np.int64(0)
             if n > 0:

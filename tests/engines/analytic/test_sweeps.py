@@ -136,10 +136,12 @@ def test_flat_end_mill_helix_is_lowest_at_a_window_end(sw, z):
 
 @pytest.mark.parametrize("kind", ["ball", "bullnose", "tapered"])
 @pytest.mark.parametrize("rho, sw, z", [(4.0, 5.0, (0.0, -3.0)), (2.0, -9.0, (-1.0, 2.0)), (6.0, 2 * math.pi, (0.5, -0.5)),
-                                        (1.0, 12.0, (0.0, -6.0))])
+                                        (1.0, 12.0, (0.0, -6.0)), (2.0, -17.3, (0.5, -1.25))])
 def test_helix_lower_surface_to_the_refined_samples(kind, rho, sw, z):
-    """A helix: minimised from its slope where a window is provably convex, sampled elsewhere; against
-    samples refined about their least, to 1e-9 mm."""
+    """A helix: minimised from its slope where a window is provably convex, bounded on its far parts
+    (a round tool round a point nearer the axis than R - rho), sampled elsewhere, on one turn of a longer
+    helix; against samples refined about their least, to 1e-9 mm, at points all over its reach and near
+    its axis."""
     lp = lower_profile(TOOLS[kind])
     c, a0 = (1.0, -2.0), 0.3
     start = (c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z[0])
@@ -148,7 +150,8 @@ def test_helix_lower_surface_to_the_refined_samples(kind, rho, sw, z):
     rng = np.random.default_rng(11)
     seen = 0
     reach = rho + lp.radius + 0.5
-    for px, py in rng.uniform(-reach, reach, (60, 2)) + np.array(c):
+    near_axis = rng.uniform(-0.5 * rho, 0.5 * rho, (20, 2))
+    for px, py in np.vstack([rng.uniform(-reach, reach, (60, 2)), near_axis]) + np.array(c):
         L = sweep_lower(row, lp.pieces, lp.radius, px, py, 0.0)
         B = brute_lower(row, lp.pieces, lp.radius, px, py, 100_001, refine=2)
         if math.isinf(B) or math.isinf(L):
