@@ -73,12 +73,13 @@ def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
 def crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb):
     """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; the index (in the
     cell's rows: 0 the CL's own sweep, j + 1 the earlier sweep ``C[j]``) of the sweep whose curve
-    makes each one (-1 for lo and hi); and whether that curve is a rim (:func:`boundary_curves`).
+    makes each one (-1 for lo and hi); and whether that curve is a rim (:func:`boundary_curves`; lo and
+    hi, a cell's edges, are none).
     A crossing of an earlier sweep's curve where nothing is removed
     around it (:func:`nothing_removed_near`) is left out."""
     out = [lo, hi]
     own = [-1.0, -1.0]
-    rim = [1.0, 1.0]  # a cell's edge may be where its CL's footprint box touches a rim
+    rim = [0.0, 0.0]
     for i in range(circles.shape[0]):
         u = x - circles[i, 0]
         s = circles[i, 2] * circles[i, 2] - u * u

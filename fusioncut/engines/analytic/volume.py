@@ -257,23 +257,23 @@ def _kink(x, lo, hi, s0, s1, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 @njit(cache=True)
 def _with_kinks(x, pts, owners, rims, S, P, R, C, CB, PP, NPC, RR, zb, zt):
-    """(``pts`` with the kinks of the removed height along the line at ``x`` added; per stretch
-    between them whether anything may be removed there; per point whether it is a rim's crossing
-    (``rims``, :func:`.breaks.crossings_at_x`; a kink is none)). A stretch :func:`_nothing_removed` proves
-    empty is kept whole; in the others the state and its margin (:func:`_probe`) are probed at even
-    samples (:data:`N_PROBE` + 1 at least, :data:`PROBE_STEP` tool radii apart at most), each change
-    located (:func:`_kink`; several between two probes one after the other, :data:`CLUSTER` of
-    their spacing apart at least), and each probe in the same state as both its neighbours with a
-    smaller margin, at most half the larger of theirs, searched for another state (:func:`_dip`),
-    whose region's edges are kinks too (a margin convex between the probes stays above twice the probe's
-    less the larger neighbour's: a dip shallower than that cannot reach another state). A kink
+    """(``pts`` with the kinks of the removed height along the line at ``x`` added; per stretch between them
+    whether anything may be removed there; per point whether the node map bends there (:func:`_ends_map`): a
+    kink, or a point of ``pts`` that ``rims`` flags (:func:`.breaks.crossings_at_x`)). A stretch
+    :func:`_nothing_removed` proves empty is kept whole; in the others the state and its margin
+    (:func:`_probe`) are probed at even samples (:data:`N_PROBE` + 1 at least, :data:`PROBE_STEP` tool radii
+    apart at most), each change located (:func:`_kink`; several between two probes one after the other,
+    :data:`CLUSTER` of their spacing apart at least), and each probe in the same state as both its
+    neighbours with a smaller margin, at most half the larger of theirs, searched for another state
+    (:func:`_dip`), whose region's edges are kinks too (a margin convex between the probes stays above twice
+    the probe's less the larger neighbour's: a dip shallower than that cannot reach another state). A kink
     left inside a stretch costs the adaptive rule a split at it (:func:`inner_integral`).
 
     A break point between two stretches probed in one and the same state is dropped where its curve
     (``owners``, as :func:`.breaks.crossings_at_x` gives them) is neither the CL's own sweep's nor that of
     the sweep giving ``h`` there: the removed height is then smooth across it."""
     out = [pts[0]]
-    rim = [False]
+    rim = [rims[0] > 0.0]
     live = []
     last = -1  # the state all probes of the last stretch had (-1: none, or a change within it)
     for p in range(pts.shape[0] - 1):
@@ -389,10 +389,9 @@ def _ends_map(a, b, u, ra, rb):
     whose slope is zero at each end flagged (``ra``, ``rb``) and not at the others: :func:`_smooth`
     at two, y = a + (b - a) s^2 or b - (b - a) (1 - s)^2 at one, the linear map at none
     (s = (u + 1) / 2). Flagged are the ends where a square root of the distance may start or lie just
-    beyond: a rim (:func:`.breaks.boundary_curves`), a cell's edge (its CL's footprint box touches a
-    rim there), a kink (the surfaces crossing there may have their rims just past it). A part's end
-    where the adaptive rule halved it is none: the integrand is smooth across it, and a zero slope
-    there would spend nodes on it."""
+    beyond: a rim (:func:`.breaks.boundary_curves`), a kink (the surfaces crossing there may have their
+    rims just past it). A cell's edge is none, nor is a part's end where the adaptive rule halved it:
+    the integrand is smooth across them, and a zero slope there would spend nodes on it."""
     if ra and rb:
         return _smooth(a, b, u)
     s = 0.5 * (u + 1.0)

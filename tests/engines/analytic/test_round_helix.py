@@ -74,10 +74,10 @@ def _run(kind, decimals):
 @pytest.mark.parametrize("kind", TOOLS)
 def test_a_round_tools_helical_bore_removes_the_closed_form_pocket_also_as_posted(kind):
     """Exact coordinates: the pocket to the volume's tolerance. Rounded to 3 decimals: every CL still
-    computed by the analytic engine; the pocket, and each CL's volume against the exact run's, within what moving the sweeps'
-    boundaries by SHIFT can change (SHIFT times the pocket's side and floor, or a CL's; each CL's sweep and
-    the earlier ones it meets move, so three times that); the helix's last CL engaged over the same angles
-    to 0.05 degrees."""
+    computed by the analytic engine; the pocket, and each CL's volume against the exact run's, within
+    what moving the sweeps' boundaries by SHIFT can change (SHIFT times the pocket's side and floor, or a
+    CL's; each CL's sweep and the earlier ones it meets move, so three times that); the helix's last CL
+    engaged over the same angles to 0.05 degrees."""
     exact, posted = _run(kind, None), _run(kind, 3)
     assert len(exact) == len(posted)
     for maps in (exact, posted):  # every CL computed here, none handed to the B-Rep engine
