@@ -330,12 +330,6 @@ def angle_windows(lo, hi, w):
 
 
 @njit(cache=True, inline="always")
-def angle_window(k, lo, hi, w):
-    """(blo, bhi): window ``k``'s part within ``[lo, hi]`` (rad; empty where blo > bhi)."""
-    return max(lo, 2.0 * math.pi * k - w), min(hi, 2.0 * math.pi * k + w)
-
-
-@njit(cache=True, inline="always")
 def window_span(k, lo, hi, w, b0, sw):
     """(ta, tb): the path parameters, within [0, 1], of window ``k``'s part within the arc's angles
     ``[lo, hi]`` (the angle is ``b0 + t sw`` from the point's direction); ta > tb only where it is
