@@ -67,8 +67,8 @@ from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
-from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, rim_radius, profile_height,
-                                               profile_radius, profile_radius_slope, upper_parts)
+from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
+                                                profile_radius, profile_radius_slope, rim_radius, upper_parts)
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, line_row, outside_row
 from fusioncut.engines.analytic.volume import removed_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
