@@ -59,7 +59,7 @@ def tiny_total() -> int:
 
 def _ephemeral_range() -> tuple[int, int]:
     try:
-        lo, hi = map(int, open("/proc/sys/net/ipv4/ip_local_port_range").read().split())
+        lo, hi = map(int, Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split())
         return lo, hi
     except (OSError, ValueError):
         return 32768, 60999

@@ -543,9 +543,9 @@ class AnalyticEngine:
             order = np.flatnonzero(keep)[np.argsort(floors[keep], kind="stable")]
             Ct, CBt = Cm[order], CBm[order]
             rows = np.vstack([row[None, :], Ct])
-            radii = [_break_radii(r, P[int(r[12]), :NP[int(r[12])]], (s[2], s[5])) for r in rows]
-            rims = [rim_radius(P[int(r[12]), :NP[int(r[12])]]) for r in rows]
-            circles, segments = boundary_curves(rows, radii, rims)
+            pieces = [P[int(r[12]), :NP[int(r[12])]] for r in rows]
+            radii = [_break_radii(r, pc, (s[2], s[5])) for r, pc in zip(rows, pieces)]
+            circles, segments = boundary_curves(rows, radii, [rim_radius(pc) for pc in pieces])
             xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct, CBt, P, NP,
                           RR, s[2])
             v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,

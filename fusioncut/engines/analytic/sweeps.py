@@ -380,7 +380,7 @@ def _far_min(S, P, R, px, py, ta, tb, best):
         m = 0.5 * (a + b)
         vm = _arc_value(0, S, P, R, px, py, 0.0, m)
         best = min(best, vm)
-        if (b - a) * span <= ARC_STEP or n > 61:
+        if (b - a) * span <= ARC_STEP or n + 2 > stack.shape[0]:  # a leaf, or no room left for two halves
             x, fx = (m, vm) if vm <= min(va, vb) else ((a, va) if va <= vb else (b, vb))
             best = min(best, _bracket_min(0, S, P, R, px, py, 0.0, a, x, b, fx))
             continue
