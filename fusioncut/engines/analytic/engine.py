@@ -64,15 +64,43 @@ import numpy as np
 from fusioncut.engines.analytic.area import Shape, contact_area
 from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
-from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
+from fusioncut.engines.analytic.contact import (
+    N_SCAN,
+    slice_arcs,
+    slice_margin,
+    sweep_grid,
+)
+from fusioncut.engines.analytic.flat import all_level_flat, flat_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
-from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
-                                                profile_radius, profile_radius_slope, rim_radius, upper_parts)
-from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, line_row, outside_row
+from fusioncut.engines.analytic.profile import (
+    LowerProfile,
+    corner_radii,
+    lower_profile,
+    profile_height,
+    profile_radius,
+    profile_radius_slope,
+    rim_radius,
+    upper_parts,
+)
+from fusioncut.engines.analytic.sweeps import (
+    LINE,
+    NCOL,
+    OUTSIDE,
+    arc_row,
+    line_row,
+    outside_row,
+)
 from fusioncut.engines.analytic.volume import removed_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
-from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
+from fusioncut.engines.cl_maps import (
+    CL,
+    CutOutcome,
+    cl_base,
+    cl_sequence,
+    engagement_map,
+    slice_heights,
+)
 from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.moves import ArcMove, ArcPlane, Move, Toolpath
@@ -546,10 +574,14 @@ class AnalyticEngine:
             pieces = [P[int(r[12]), :NP[int(r[12])]] for r in rows]
             radii = [_break_radii(r, pc, (s[2], s[5])) for r, pc in zip(rows, pieces)]
             circles, segments = boundary_curves(rows, radii, [rim_radius(pc) for pc in pieces])
-            xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct, CBt, P, NP,
-                          RR, s[2])
-            v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
-                                   P, NP, RR, s[2], s[5], self.volume_tol, self.volume_rel, edges)
+            if all_level_flat(row, profile.pieces, Ct, P, NP):
+                v, vb = flat_volume(cx0, cx1, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct,
+                                    CBt, P, NP, RR, s[2], s[5], edges)
+            else:
+                xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct, CBt, P,
+                              NP, RR, s[2])
+                v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
+                                       P, NP, RR, s[2], s[5], self.volume_tol, self.volume_rel, edges)
             total += v
             bands += vb
         return float(total), tuple(float(v) for v in bands)

@@ -154,6 +154,16 @@ def test_an_arc_cl_whose_footprint_a_deeper_arc_holds_removes_nothing():
     assert not held(quarter, line_row((10, -20, -5), (10, 20, -5), 0))  # a line holds no arc here
 
 
+def _integrated_rows(monkeypatch, key) -> list:
+    """A list that gets ``key`` of the CL's sweep row for every cell whose removed volume is integrated,
+    adaptively (.volume) or in closed form (.flat)."""
+    integrals = []
+    adaptive, closed = analytic.removed_volume, analytic.flat_volume
+    monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(key(a[5])) or adaptive(*a))
+    monkeypatch.setattr(analytic, "flat_volume", lambda *a: integrals.append(key(a[6])) or closed(*a))
+    return integrals
+
+
 @pytest.mark.parametrize("offset", [0.0, 0.01])
 def test_a_circle_retraced_higher_removes_what_sticks_out_of_it(monkeypatch, offset):
     """A 6 mm flat end mill's full circle of radius 10 mm 5 mm deep, then one ``offset`` mm wider 2 mm
@@ -163,9 +173,7 @@ def test_a_circle_retraced_higher_removes_what_sticks_out_of_it(monkeypatch, off
 
     from fusioncut.model import ArcMove, BoxStock, FlatEndMill, LinearMove
 
-    integrals = []
-    real = analytic.removed_volume
-    monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(tuple(a[5][[0, 6]])) or real(*a))
+    integrals = _integrated_rows(monkeypatch, lambda row: tuple(row[[0, 6]]))
     r = 10.0 + offset
     moves = [LinearMove((10, 0, 5), (10, 0, -5), rapid=True, tool=1),
              ArcMove((10, 0, -5), (10, 0, -5), feed=600.0, tool=1, center=(0, 0, -5), clockwise=False),
@@ -188,9 +196,7 @@ def test_a_slot_retraced_higher_removes_what_sticks_out_of_it(monkeypatch, offse
 
     from fusioncut.model import BoxStock, FlatEndMill, LinearMove
 
-    integrals = []
-    real = analytic.removed_volume
-    monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(a[5][6]) or real(*a))
+    integrals = _integrated_rows(monkeypatch, lambda row: row[6])
     moves = [feed((-40, 0, -5), (40, 0, -5)), LinearMove((40, 0, -5), (40, 0, 5), rapid=True, tool=1),
              LinearMove((40, 0, 5), (-40, offset, 5), rapid=True, tool=1),
              LinearMove((-40, offset, 5), (-40, offset, -2), rapid=True, tool=1),
@@ -329,9 +335,7 @@ def test_a_steep_helical_entry_run_twice_removes_nothing_the_second_time(monkeyp
     options = EngineOptions(chord_tolerance=0.02)
     once = list(analytic.AnalyticEngine(options).run(Toolpath(tuple(entry()), {1: FlatEndMill(6, 20)}), stock))
     assert sum(m.removed_volume for m in once) > 50
-    integrals = []
-    real = analytic.removed_volume
-    monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(a[5][6]) or real(*a))
+    integrals = _integrated_rows(monkeypatch, lambda row: row[6])
     engine = analytic.AnalyticEngine(options)
     engine.start(stock)
     again = list(engine.process(Toolpath(tuple(entry() * 2), {1: FlatEndMill(6, 20)}), start_at=len(once)))

@@ -1,0 +1,172 @@
+"""Volume a flat end mill's level cut removes where every sweep shaping it is level and flat: in closed form.
+
+Machine frame, mm. Where the CL's own sweep and every earlier sweep that can shape the removed height in
+a cell are a flat end mill moved at one height (a line or an XY arc; :func:`is_level_flat`) or a round
+bar's outside (:func:`.sweeps.outside_lower`), each lower surface is one constant over its footprint, so
+the removed height ``max(0, min(h, top) - max(L, bottom))`` (:mod:`.volume`) is **constant** between the
+footprints' boundary curves (:func:`.breaks.boundary_curves`: circles and segments). Between two
+consecutive *events* along x the curves' crossings with a line ``x = const`` keep their order: a curve's
+extreme x, a segment's end, two curves meeting (:func:`.breaks.curve_meetings_x`) and a curve meeting the
+cell's edges ``y = ylo`` or ``y = yhi``. On such a part ``[a, b]`` the removed volume is therefore
+
+    sum over the stretches k between consecutive crossings at the part's middle of
+        c_k * integral over [a, b] of (y_upper_k(x) - y_lower_k(x)) dx
+
+with ``c_k`` the removed height at the stretch's middle and each crossing's ``y(x)`` a circle's branch
+``cy +- sqrt(r^2 - (x - cx)^2)`` (its integral in closed form, :func:`_circle_integral`) or a segment's
+line: exact up to round-off, no error estimate needed. This is the 2.5D planar cut of the B-Rep engine's
+layers, as an integral: no polygon is built.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fusioncut.engines.analytic.breaks import curve_meetings_x
+from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat
+from fusioncut.engines.analytic.volume import _band_overlaps, height_and_cause
+
+
+@njit(cache=True)
+def is_level_flat(S, P) -> bool:
+    """Whether the sweep row ``S`` (its tool's lower profile ``P``) has one constant lower surface over its
+    footprint: a flat end mill's line or XY arc at one height, or a round bar's outside."""
+    if S[0] == OUTSIDE:
+        return True
+    return (S[0] == LINE or S[0] == ARC) and S[3] == S[6] and is_flat(P)
+
+
+@njit(cache=True)
+def all_level_flat(S, P, C, PP, NPC) -> bool:
+    """Whether the CL's sweep ``S`` (profile ``P``) and every earlier sweep of ``C`` are level and flat."""
+    if not is_level_flat(S, P):
+        return False
+    for j in range(C.shape[0]):
+        k = int(C[j, 12])
+        if not is_level_flat(C[j], PP[k, :NPC[k]]):
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _half_disk(u, r):
+    """integral over [0, u] of sqrt(r^2 - v^2) dv (|u| <= r). Near a tangent (|u| close to r) ``r^2 - u^2``
+    and ``asin(u / r)`` would lose their digits to cancellation; ``(r - u) (r + u)`` and ``atan2`` keep them."""
+    s = math.sqrt(max((r - u) * (r + u), 0.0))
+    return 0.5 * (u * s + r * r * math.atan2(u, s))
+
+
+@njit(cache=True, inline="always")
+def _circle_integral(cx, r, a, b):
+    """integral over x in [a, b] of sqrt(r^2 - (x - cx)^2) dx (a, b within [cx - r, cx + r])."""
+    return _half_disk(b - cx, r) - _half_disk(a - cx, r)
+
+
+@njit(cache=True, inline="always")
+def _segment_y(seg, x):
+    return seg[1] + (seg[3] - seg[1]) * (x - seg[0]) / (seg[2] - seg[0])
+
+
+@njit(cache=True)
+def _events(x0, x1, ylo, yhi, circles, segments):
+    """Sorted x in [x0, x1], both among them, where the order of the curves' crossings along a line
+    x = const may change (module docstring)."""
+    out = [x0, x1]
+    for i in range(circles.shape[0]):
+        cx, cy, r = circles[i, 0], circles[i, 1], circles[i, 2]
+        out.append(cx - r)
+        out.append(cx + r)
+        for y in (ylo, yhi):
+            s = (r - (y - cy)) * (r + (y - cy))
+            if s >= 0.0:
+                w = math.sqrt(s)
+                out.append(cx - w)
+                out.append(cx + w)
+    for i in range(segments.shape[0]):
+        sx0, sy0, sx1, sy1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
+        out.append(sx0)
+        out.append(sx1)
+        if sy1 != sy0:
+            for y in (ylo, yhi):
+                t = (y - sy0) / (sy1 - sy0)
+                if 0.0 <= t <= 1.0:
+                    out.append(sx0 + t * (sx1 - sx0))
+    meet = curve_meetings_x(circles, segments, x0, ylo, x1, yhi)
+    for i in range(meet.shape[0]):
+        out.append(meet[i, 0])
+    xs = np.unique(np.array(out))
+    return xs[(xs >= x0) & (xs <= x1)]
+
+
+@njit(cache=True)
+def flat_volume(x0, x1, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges):
+    """(the volume removed over [x0, x1] x [ylo, yhi] (mm³), in closed form (module docstring); its parts
+    within each band [edges[i], edges[i + 1]] of machine heights). Only for sweeps that
+    :func:`all_level_flat` accepts; ``circles`` and ``segments`` are their boundary curves."""
+    nb = max(edges.shape[0] - 1, 0)
+    bands = np.zeros(nb)
+    xs = _events(x0, x1, ylo, yhi, circles, segments)
+    nc, ns = circles.shape[0], segments.shape[0]
+    ys = np.empty(2 * nc + ns + 2)
+    ids = np.empty(2 * nc + ns + 2, dtype=np.int64)
+    total = 0.0
+    for p in range(xs.shape[0] - 1):
+        a, b = xs[p], xs[p + 1]
+        if b <= a:
+            continue
+        xm = 0.5 * (a + b)
+        # the crossings at the part's middle: circle i's lower branch is 2 i, its upper 2 i + 1, segment j
+        # 2 nc + j; the cell's edges -1 and -2
+        n = 0
+        ys[n], ids[n] = ylo, -1
+        n += 1
+        for i in range(nc):
+            u = xm - circles[i, 0]
+            s = (circles[i, 2] - u) * (circles[i, 2] + u)
+            if s > 0.0:
+                w = math.sqrt(s)
+                for k in range(2):
+                    y = circles[i, 1] - w if k == 0 else circles[i, 1] + w
+                    if ylo < y < yhi:
+                        ys[n], ids[n] = y, 2 * i + k
+                        n += 1
+        for j in range(ns):
+            sx0, sx1 = segments[j, 0], segments[j, 2]
+            if sx0 != sx1 and min(sx0, sx1) < xm < max(sx0, sx1):
+                y = _segment_y(segments[j], xm)
+                if ylo < y < yhi:
+                    ys[n], ids[n] = y, 2 * nc + j
+                    n += 1
+        ys[n], ids[n] = yhi, -2
+        n += 1
+        order = np.argsort(ys[:n])
+        below = _branch_integral(ids[order[0]], a, b, ylo, yhi, circles, segments, nc)
+        for q in range(n - 1):
+            lo, hi = order[q], order[q + 1]
+            above = _branch_integral(ids[hi], a, b, ylo, yhi, circles, segments, nc)
+            if ys[hi] > ys[lo]:
+                v, _, own = height_and_cause(xm, 0.5 * (ys[lo] + ys[hi]), S, P, R, C, CB, PP, NPC, RR, zb, zt)
+                if v > 0.0:
+                    area = above - below
+                    total += v * area
+                    if nb > 0:
+                        _band_overlaps(max(own, zb), v, edges, bands, area)
+            below = above
+    return total, bands
+
+
+@njit(cache=True)
+def _branch_integral(i, a, b, ylo, yhi, circles, segments, nc):
+    """integral over x in [a, b] of the crossing ``i``'s y (flat_volume's numbering)."""
+    if i == -1:
+        return ylo * (b - a)
+    if i == -2:
+        return yhi * (b - a)
+    if i < 2 * nc:
+        c = i // 2
+        s = _circle_integral(circles[c, 0], circles[c, 2], a, b)
+        return circles[c, 1] * (b - a) + (s if i % 2 == 1 else -s)
+    seg = segments[i - 2 * nc]
+    return 0.5 * (_segment_y(seg, a) + _segment_y(seg, b)) * (b - a)
