@@ -321,11 +321,13 @@ def _undominated(C, PP, NPC, RR, keep, floors):
 
 
 @njit(cache=True)
-def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps, many):
+def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps, many, most):
     """(whether the CL ``S`` can remove nothing in the rectangle, the mask of the rows of ``C`` that
     can give ``h`` in it, their floors (mm)), as the module docstring says; footprints widened by
     ``eps`` (mm) for the floors, as :func:`.contact.material_at` widens them. Where more than
-    ``many`` are left, the dominated ones are left out too (O(n²))."""
+    ``many`` and at most ``most`` are left, the dominated ones are left out too (O(n²): a caller that
+    quarters a cell left with more than ``many`` passes a ``most`` that spares it this for the
+    hundreds of sweeps a wide cell of an adaptive clearing meets)."""
     n = C.shape[0]
     keep = np.zeros(n, dtype=np.bool_)
     floors = np.full(n, math.inf)
@@ -343,7 +345,7 @@ def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps, many):
     for j in range(n):
         keep[j] = floors[j] < cap or j == capper
         count += keep[j]
-    if count > many:
+    if many < count <= most:
         keep = _undominated(C, PP, NPC, RR, keep, floors)
     own = max(zb, cell_floor(S, P, R, x0, y0, x1, y1, 0.0))
     return own >= cap, keep, floors

@@ -165,7 +165,7 @@ def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.
     for i in range(n):
         for j in range(n):
             keep = relevant_sweeps(x0 + i * w, y0 + j * w, x0 + (i + 1) * w, y0 + (j + 1) * w, S, P, R, C, PP, NPC,
-                                   RR, zb, zt, eps, MANY)[1]
+                                   RR, zb, zt, eps, MANY, math.inf)[1]
             items.extend(np.flatnonzero(keep).tolist())
             starts.append(len(items))
     return (np.array([x0, y0, w, n], dtype=np.float64), np.array(starts, dtype=np.int64),

@@ -113,6 +113,8 @@ TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
 CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps is quartered (.cells),
 # as is one with a quarter where nothing can be removed
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
+DOMINANCE_MOST = 4 * CELL_SWEEPS  # a cell that can still be quartered and is met by more sweeps is quartered without
+# looking for dominated ones among them (.cells.relevant_sweeps: O(n²) in the sweeps left)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 N_TOUCH = 360  # angles per height scanned for the contact's height range
 Z_TOL = 1e-10  # mm: the contact's height range
@@ -545,24 +547,28 @@ class AnalyticEngine:
             return 0.0, tuple(bands)  # retraced above a deeper pass that holds its whole footprint
         total = 0.0
 
-        def cull(cell: tuple[float, float, float, float]):
-            """(the earlier sweeps whose boxes meet the cell, their boxes, and .cells.relevant_sweeps of them)"""
+        def cull(cell: tuple[float, float, float, float], C: np.ndarray, CB: np.ndarray):
+            """(the sweeps of ``C`` whose boxes ``CB`` meet the cell, their boxes, and .cells.relevant_sweeps of
+            them)"""
             meet = (CB[:, 0] <= cell[2]) & (CB[:, 2] >= cell[0]) & (CB[:, 1] <= cell[3]) & (CB[:, 3] >= cell[1])
             Cm = C[meet]
+            most = DOMINANCE_MOST if cell[2] - cell[0] > MIN_CELL_RADII * scale else math.inf
             return Cm, CB[meet], *relevant_sweeps(*cell, row, profile.pieces, profile.radius, Cm, P, NP, RR, s[2],
-                                                  s[5], 0.0, CELL_SWEEPS)
+                                                  s[5], 0.0, CELL_SWEEPS, most)
 
-        cells = [(c, cull(c)) for c in tiles(x0, y0, x1, y1, TILE_RADII * scale)]
+        cells = [(c, cull(c, C, CB)) for c in tiles(x0, y0, x1, y1, TILE_RADII * scale)]
         while cells:
             (cx0, cy0, cx1, cy1), (Cm, CBm, empty, keep, floors) = cells.pop()
             if empty:
                 continue
             if cx1 - cx0 > MIN_CELL_RADII * scale:
                 # quartered where many sweeps are left, or where a quarter is proven empty (its area
-                # then costs nothing)
+                # then costs nothing); a quarter needs only its cell's sweeps: one left out there can
+                # give h nowhere in the cell (its floor over the cell is at least what h is at most)
                 mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
-                quarters = [(q, cull(q)) for q in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1),
-                                                   (mx, my, cx1, cy1))]
+                Ck, CBk = Cm[keep], CBm[keep]
+                quarters = [(q, cull(q, Ck, CBk)) for q in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1),
+                                                            (mx, my, cx1, cy1))]
                 if keep.sum() > CELL_SWEEPS or any(c[1][2] for c in quarters):
                     cells += quarters
                     continue
