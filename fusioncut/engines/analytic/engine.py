@@ -64,43 +64,16 @@ import numpy as np
 from fusioncut.engines.analytic.area import Shape, contact_area
 from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
-from fusioncut.engines.analytic.contact import (
-    N_SCAN,
-    slice_arcs,
-    slice_margin,
-    sweep_grid,
-)
+from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
 from fusioncut.engines.analytic.flat import all_level_flat, flat_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
-from fusioncut.engines.analytic.profile import (
-    LowerProfile,
-    corner_radii,
-    lower_profile,
-    profile_height,
-    profile_radius,
-    profile_radius_slope,
-    rim_radius,
-    upper_parts,
-)
-from fusioncut.engines.analytic.sweeps import (
-    LINE,
-    NCOL,
-    OUTSIDE,
-    arc_row,
-    line_row,
-    outside_row,
-)
+from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
+                                                profile_radius, profile_radius_slope, rim_radius, upper_parts)
+from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, line_row, outside_row
 from fusioncut.engines.analytic.volume import removed_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
-from fusioncut.engines.cl_maps import (
-    CL,
-    CutOutcome,
-    cl_base,
-    cl_sequence,
-    engagement_map,
-    slice_heights,
-)
+from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
 from fusioncut.model.engagement import CLStatus, EngagementMap
 from fusioncut.model.moves import ArcMove, ArcPlane, Move, Toolpath
@@ -113,6 +86,8 @@ TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
 CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps is quartered (.cells),
 # as is one with a quarter where nothing can be removed
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
+FLAT_SWEEPS = 2 * CELL_SWEEPS  # a cell whose sweeps are all level and flat is integrated in closed form (.flat)
+# whole up to this many: its integral costs less than quartering it would
 DOMINANCE_MOST = 4 * CELL_SWEEPS  # a cell that can still be quartered and is met by more sweeps is quartered without
 # looking for dominated ones among them (.cells.relevant_sweeps: O(n²) in the sweeps left)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
@@ -561,10 +536,12 @@ class AnalyticEngine:
             (cx0, cy0, cx1, cy1), (Cm, CBm, empty, keep, floors) = cells.pop()
             if empty:
                 continue
-            if cx1 - cx0 > MIN_CELL_RADII * scale:
+            flat = all_level_flat(row, profile.pieces, Cm[keep], P, NP)
+            if cx1 - cx0 > MIN_CELL_RADII * scale and not (flat and keep.sum() <= FLAT_SWEEPS):
                 # quartered where many sweeps are left, or where a quarter is proven empty (its area
-                # then costs nothing); a quarter needs only its cell's sweeps: one left out there can
-                # give h nowhere in the cell (its floor over the cell is at least what h is at most)
+                # then costs nothing), unless its closed form costs less (FLAT_SWEEPS); a quarter needs only
+                # its cell's sweeps: one left out there can give h nowhere in the cell (its floor over the
+                # cell is at least what h is at most)
                 mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
                 Ck, CBk = Cm[keep], CBm[keep]
                 quarters = [(q, cull(q, Ck, CBk)) for q in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1),
@@ -580,7 +557,7 @@ class AnalyticEngine:
             pieces = [P[int(r[12]), :NP[int(r[12])]] for r in rows]
             radii = [_break_radii(r, pc, (s[2], s[5])) for r, pc in zip(rows, pieces)]
             circles, segments = boundary_curves(rows, radii, [rim_radius(pc) for pc in pieces])
-            if all_level_flat(row, profile.pieces, Ct, P, NP):
+            if flat:
                 v, vb = flat_volume(cx0, cx1, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct,
                                     CBt, P, NP, RR, s[2], s[5], edges)
             else:
