@@ -58,7 +58,7 @@ def test_level_flat_cuts_in_closed_form_as_the_adaptive_integral(monkeypatch, se
     CL's volume and its slices' rubbing as the adaptive integral finds them (its own tolerance)."""
     flat, adaptive, calls = _both_ways(monkeypatch, _level_program(seed, decimals), {1: FlatEndMill(6, 20)},
                                        BoxStock((-20, -15, -10), (20, 15, 0)), slice_height=1.0)
-    assert calls > 20
+    assert calls >= 10  # cells integrated in closed form
     assert sum(m.removed_volume for m in flat) > 100
     for a, b in zip(flat, adaptive, strict=True):
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
@@ -74,7 +74,7 @@ def test_a_round_bar_and_another_tool_shape(monkeypatch):
     bar = CylinderStock((0.0, 0.0, -10.0), 16.0, 10.0)
     flat, adaptive, calls = _both_ways(monkeypatch, moves, {1: FlatEndMill(6, 20), 2: BallEndMill(4, 20)}, bar,
                                        slice_height=1.0)
-    assert calls > 20
+    assert calls >= 10  # cells integrated in closed form
     for a, b in zip(flat, adaptive, strict=True):
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
 
