@@ -61,7 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusioncut.engines.analytic.area import Shape, contact_area
+from fusioncut.engines.analytic.area import Shape, contact_area, stepwise_area
 from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
@@ -416,12 +416,12 @@ class AnalyticEngine:
             wider = upper_parts(tool)
             if z_range is not None:
                 breaks = _area_breaks(shaping, PP, NPC, top - ez, ez)
-                flute_area = contact_area(lambda z: _width(args, z), profile.pieces, *z_range, breaks)[0]
+                flute_area = self._area(args, cut, shaping, z_range, breaks)
                 # the cutting part taken straight up, as it is swept, up to the first wider part
                 shank = contact_range(args, tool.flute_length, wider[0].height if wider else math.inf, dz, levels) \
                     if z_range[1] >= tool.flute_length else None
                 if shank is not None:
-                    shank_area = contact_area(lambda z: _width(args, z), profile.pieces, *shank, breaks)[0]
+                    shank_area = self._area(args, cut, shaping, shank, breaks)
                     warnings += _narrow_neck(tool, profile, shank)
             for i, p in enumerate(parts[1:], 1):
                 # a wider neck or shank touches wherever it meets material, up to the next wider part
@@ -431,7 +431,7 @@ class AnalyticEngine:
                 rng = contact_range(p_args, 0.0, p_top, dz, p_levels)
                 if rng is not None:
                     p_breaks = _area_breaks(p_shaping, PP, NPC, top - p.row[6], p.row[6])
-                    shank_area += contact_area(lambda z: _width(p_args, z), p.profile.pieces, *rng, p_breaks)[0]
+                    shank_area += self._area(p_args, p, p_shaping, rng, p_breaks)
             timings["area"] = (time.perf_counter() - t3) * 1e3
             outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
                                  method=SweepMethod.EXACT, timings=timings, z_range=z_range,
@@ -443,6 +443,20 @@ class AnalyticEngine:
         self.removed_total += removed
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))
+
+    def _area(self, args: tuple, part: PartSweep, shaping: np.ndarray, z_range: tuple[float, float],
+              breaks: list[float]) -> float:
+        """The contact area (mm²) of ``part``'s surface between the heights ``z_range`` (mm above its tip)
+        at the CL's end: in closed form where it and every sweep shaping the material there are level and
+        flat (:func:`.area.stepwise_area`, the stock's bottom one more break), else adaptively
+        (:func:`.area.contact_area`)."""
+        PP, NPC = self._tools.profiles, self._tools.counts
+        if all_level_flat(part.row, part.profile.pieces, shaping, PP, NPC):
+            area = stepwise_area(lambda z: _width(args, z), part.profile.radius, *z_range,
+                                 [*breaks, self.stock[2] - part.row[6]])
+            if area is not None:
+                return area
+        return contact_area(lambda z: _width(args, z), part.profile.pieces, *z_range, breaks)[0]
 
     def _end_args(self, part: PartSweep, parts: list[PartSweep], C: np.ndarray, CB: np.ndarray
                   ) -> tuple[tuple, np.ndarray]:

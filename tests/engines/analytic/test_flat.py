@@ -1,4 +1,5 @@
-"""The closed-form volume of level flat cuts (.flat) against the adaptive integral (.volume) and closed forms."""
+"""Level flat cuts in closed form, their volume (.flat) and contact area (.area.stepwise_area), against the
+adaptive integrals (.volume, .area.contact_area) and closed forms."""
 from __future__ import annotations
 
 import math
@@ -9,7 +10,7 @@ import pytest
 import fusioncut.engines.analytic.engine as analytic
 from fusioncut.engines.analytic.flat import _circle_integral
 from fusioncut.model import ArcMove, BallEndMill, BoxStock, CylinderStock, FlatEndMill, LinearMove
-from tests.engines.analytic.test_engine import VOLUME_REL, feed, run
+from tests.engines.analytic.test_engine import AREA_REL, VOLUME_REL, feed, run
 
 
 def _level_program(seed: int, decimals: int | None) -> list:
@@ -62,6 +63,8 @@ def test_level_flat_cuts_in_closed_form_as_the_adaptive_integral(monkeypatch, se
     assert sum(m.removed_volume for m in flat) > 100
     for a, b in zip(flat, adaptive, strict=True):
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
+        assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
+        assert a.shank_contact_area == pytest.approx(b.shank_contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
         assert a.rubbing_slices == b.rubbing_slices
         assert a.engine == b.engine == "analytic"
 
