@@ -104,12 +104,18 @@ def _events(x0, x1, ylo, yhi, circles, segments):
 def flat_volume(x0, x1, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges):
     """(the volume removed over [x0, x1] x [ylo, yhi] (mm³), in closed form (module docstring); its parts
     within each band [edges[i], edges[i + 1]] of machine heights). Only for sweeps that
-    :func:`all_level_flat` accepts; ``circles`` and ``segments`` are their boundary curves."""
+    :func:`all_level_flat` accepts; ``circles`` and ``segments`` are their boundary curves.
+
+    On a part the curves that span it (a circle's two branches, a segment) and the cell's edges are
+    ordered by their mean y over it, which orders them at every x inside (they do not cross there), and
+    a curve whose mean lies outside [ylo, yhi] lies outside all along (it crosses neither edge): no
+    decision rests on one line x = const, where a curve may just touch an edge (a circle's apex on it)."""
     nb = max(edges.shape[0] - 1, 0)
     bands = np.zeros(nb)
     xs = _events(x0, x1, ylo, yhi, circles, segments)
     nc, ns = circles.shape[0], segments.shape[0]
-    ys = np.empty(2 * nc + ns + 2)
+    means = np.empty(2 * nc + ns + 2)
+    ints = np.empty(2 * nc + ns + 2)
     ids = np.empty(2 * nc + ns + 2, dtype=np.int64)
     total = 0.0
     for p in range(xs.shape[0] - 1):
@@ -117,49 +123,63 @@ def flat_volume(x0, x1, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR
         if b <= a:
             continue
         xm = 0.5 * (a + b)
-        # the crossings at the part's middle: circle i's lower branch is 2 i, its upper 2 i + 1, segment j
+        # the curves spanning the part: circle i's lower branch is 2 i, its upper 2 i + 1, segment j
         # 2 nc + j; the cell's edges -1 and -2
         n = 0
-        ys[n], ids[n] = ylo, -1
-        n += 1
-        for i in range(nc):
-            u = xm - circles[i, 0]
-            s = (circles[i, 2] - u) * (circles[i, 2] + u)
-            if s > 0.0:
-                w = math.sqrt(s)
-                for k in range(2):
-                    y = circles[i, 1] - w if k == 0 else circles[i, 1] + w
-                    if ylo < y < yhi:
-                        ys[n], ids[n] = y, 2 * i + k
-                        n += 1
-        for j in range(ns):
-            sx0, sx1 = segments[j, 0], segments[j, 2]
-            if sx0 != sx1 and min(sx0, sx1) < xm < max(sx0, sx1):
-                y = _segment_y(segments[j], xm)
-                if ylo < y < yhi:
-                    ys[n], ids[n] = y, 2 * nc + j
-                    n += 1
-        ys[n], ids[n] = yhi, -2
-        n += 1
-        order = np.argsort(ys[:n])
-        below = _branch_integral(ids[order[0]], a, b, ylo, yhi, circles, segments, nc)
+        for i in range(-2, 2 * nc + ns):
+            if 0 <= i < 2 * nc and abs(xm - circles[i // 2, 0]) >= circles[i // 2, 2]:
+                continue
+            if i >= 2 * nc:
+                sx0, sx1 = segments[i - 2 * nc, 0], segments[i - 2 * nc, 2]
+                if not min(sx0, sx1) < xm < max(sx0, sx1):
+                    continue
+            v = _branch_integral(i, a, b, ylo, yhi, circles, segments, nc)
+            mean = v / (b - a)
+            if i < 0 or ylo < mean < yhi:
+                ints[n], means[n], ids[n] = v, mean, i
+                n += 1
+        order = np.argsort(means[:n], kind="mergesort")
         for q in range(n - 1):
             lo, hi = order[q], order[q + 1]
-            above = _branch_integral(ids[hi], a, b, ylo, yhi, circles, segments, nc)
-            if ys[hi] > ys[lo]:
-                v, _, own = height_and_cause(xm, 0.5 * (ys[lo] + ys[hi]), S, P, R, C, CB, PP, NPC, RR, zb, zt)
-                if v > 0.0:
-                    area = above - below
-                    total += v * area
-                    if nb > 0:
-                        _band_overlaps(max(own, zb), v, edges, bands, area)
-            below = above
+            area = ints[hi] - ints[lo]
+            if area <= 0.0:
+                continue
+            # the height at the middle of the stretch where it is widest of three lines (two curves that
+            # meet at an end of the part, or touch inside it, leave no width at that line)
+            best, xb = -1.0, xm
+            for x in (a + 0.25 * (b - a), xm, a + 0.75 * (b - a)):
+                gap = _branch_y(ids[hi], x, ylo, yhi, circles, segments, nc) - \
+                    _branch_y(ids[lo], x, ylo, yhi, circles, segments, nc)
+                if gap > best:
+                    best, xb = gap, x
+            y = 0.5 * (_branch_y(ids[hi], xb, ylo, yhi, circles, segments, nc)
+                       + _branch_y(ids[lo], xb, ylo, yhi, circles, segments, nc))
+            v, _, own = height_and_cause(xb, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
+            if v > 0.0:
+                total += v * area
+                if nb > 0:
+                    _band_overlaps(max(own, zb), v, edges, bands, area)
     return total, bands
 
 
 @njit(cache=True)
+def _branch_y(i, x, ylo, yhi, circles, segments, nc):
+    """The y of curve ``i`` (:func:`flat_volume`'s numbering) at ``x``."""
+    if i == -1:
+        return ylo
+    if i == -2:
+        return yhi
+    if i < 2 * nc:
+        c = i // 2
+        u = x - circles[c, 0]
+        w = math.sqrt(max((circles[c, 2] - u) * (circles[c, 2] + u), 0.0))
+        return circles[c, 1] + (w if i % 2 == 1 else -w)
+    return _segment_y(segments[i - 2 * nc], x)
+
+
+@njit(cache=True)
 def _branch_integral(i, a, b, ylo, yhi, circles, segments, nc):
-    """integral over x in [a, b] of the crossing ``i``'s y (flat_volume's numbering)."""
+    """integral over x in [a, b] of curve ``i``'s y (:func:`flat_volume`'s numbering)."""
     if i == -1:
         return ylo * (b - a)
     if i == -2:

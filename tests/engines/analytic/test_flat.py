@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 import random
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -11,6 +13,8 @@ import fusioncut.engines.analytic.engine as analytic
 from fusioncut.engines.analytic.flat import _circle_integral
 from fusioncut.model import ArcMove, BallEndMill, BoxStock, CylinderStock, FlatEndMill, LinearMove
 from tests.engines.analytic.test_engine import AREA_REL, VOLUME_REL, feed, run
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
 
 
 def _level_program(seed: int, decimals: int | None) -> list:
@@ -107,3 +111,45 @@ def test_circle_integral_at_a_tangent_keeps_its_digits():
 
     exact = series(b - cx + r) - series(a - cx + r)
     assert _circle_integral(cx, r, a, b) == pytest.approx(exact, rel=1e-11)
+
+
+@pytest.mark.parametrize("angle", [20.0, 30.0, 70.0])
+def test_a_line_whose_end_circle_tops_its_footprint(monkeypatch, angle):
+    """An inclined slot in the open: its footprint's box ends at its end circle's apex, which a cell's
+    edge then meets at the middle of the part between the sides' ends (found on fusion-posted/1055_utab,
+    CL 31: a closed form that decided the curves at that line alone lost the circle's upper branch)."""
+    a = math.radians(angle)
+    end = (round(12 * math.cos(a), 3), round(12 * math.sin(a), 3), -2.0)
+    moves = [LinearMove((0.0, 0.0, 5.0), (0.0, 0.0, -2.0), rapid=True, tool=1), feed((0.0, 0.0, -2.0), end)]
+    flat, adaptive, calls = _both_ways(monkeypatch, moves, {1: FlatEndMill(2.65, 20)},
+                                       BoxStock((-20, -20, -10), (30, 30, 0)), slice_height=1.0)
+    assert calls >= 1
+    exact = 2.0 * (2.65 * math.hypot(end[0], end[1]) + math.pi * 1.325 ** 2)  # the slot: the plunge's disk and the line
+    assert sum(m.removed_volume for m in flat) == pytest.approx(exact, rel=1e-12)
+    for x, y in zip(flat, adaptive, strict=True):
+        assert x.removed_volume == pytest.approx(y.removed_volume, rel=VOLUME_REL, abs=1e-9)
+
+
+def test_real_level_flat_cuts_in_closed_form_as_the_adaptive_integral(monkeypatch):
+    """fusion-posted/1055_utab_265bit.nc CLs 0-119 (a flat end mill's pocket at one depth, CL 31 the one
+    above): each CL's volume and contact areas in closed form as the adaptive integrals find them."""
+    import real_programs
+    from shared_data import DATA
+
+    if not (DATA / "fusion-posted" / "1055_utab_265bit.nc").is_file():
+        pytest.skip("shared data missing")
+    toolpath, stock, default = real_programs.load(next(p for p in real_programs.PROGRAMS if p.name == "1055_utab"))
+
+    def first(n: int) -> list:
+        engine = analytic.AnalyticEngine(analytic.EngineOptions())
+        engine.start(stock)
+        maps = engine.process(toolpath, default)
+        return [next(maps) for _ in range(n)]
+
+    closed = first(120)
+    monkeypatch.setattr(analytic, "all_level_flat", lambda *a: False)
+    adaptive = first(120)
+    assert sum(m.removed_volume for m in closed) > 100
+    for a, b in zip(closed, adaptive, strict=True):
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
+        assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
