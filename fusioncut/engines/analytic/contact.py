@@ -160,14 +160,31 @@ def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.
     footprints widened by ``eps``); a point then meets only its cell's sweeps. Points outside the
     square take the nearest cell: callers keep them inside."""
     w = width / n
+    cell_items: list[list[int]] = [[] for _ in range(n * n)]
+
+    def split(i0: int, i1: int, j0: int, j1: int, rows: np.ndarray) -> None:
+        """The cells [i0, i1) x [j0, j1) from the sweeps ``rows`` of ``C``: a block's left-out sweeps are
+        left out over each of its cells (.cells.relevant_sweeps), so the block is halved until single cells
+        with only its own, as the volume's quarters are."""
+        single = i1 - i0 == 1 and j1 - j0 == 1
+        keep = relevant_sweeps(x0 + i0 * w, y0 + j0 * w, x0 + i1 * w, y0 + j1 * w, S, P, R, C[rows], PP, NPC, RR, zb,
+                               zt, eps, MANY, math.inf if single else 4 * MANY)[1]
+        rows = rows[keep]
+        if single:
+            cell_items[i0 * n + j0] = rows.tolist()
+        elif i1 - i0 >= j1 - j0:
+            split(i0, (i0 + i1) // 2, j0, j1, rows)
+            split((i0 + i1) // 2, i1, j0, j1, rows)
+        else:
+            split(i0, i1, j0, (j0 + j1) // 2, rows)
+            split(i0, i1, (j0 + j1) // 2, j1, rows)
+
+    split(0, n, 0, n, np.arange(C.shape[0]))
     starts = [0]
     items: list[int] = []
-    for i in range(n):
-        for j in range(n):
-            keep = relevant_sweeps(x0 + i * w, y0 + j * w, x0 + (i + 1) * w, y0 + (j + 1) * w, S, P, R, C, PP, NPC,
-                                   RR, zb, zt, eps, MANY, math.inf)[1]
-            items.extend(np.flatnonzero(keep).tolist())
-            starts.append(len(items))
+    for cell in cell_items:
+        items.extend(cell)
+        starts.append(len(items))
     return (np.array([x0, y0, w, n], dtype=np.float64), np.array(starts, dtype=np.int64),
             np.array(items, dtype=np.int64))
 
