@@ -13,7 +13,9 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
   (:func:`tiles`), quartered while many earlier sweeps can shape the removed height in them or a
   quarter is proven to remove nothing (and is skipped), each cell integrated with only the sweeps
   that can shape it there (:mod:`.cells`); a CL whose whole footprint an earlier, deeper sweep
-  holds removes nothing and is not integrated (:func:`.cells.held_below`);
+  holds removes nothing and is not integrated (:func:`.cells.held_below`); a cell where the CL and
+  every sweep shaping it are level flat cuts is not integrated but computed in closed form
+  (:mod:`.flat`), and quartered only beyond :data:`FLAT_SWEEPS` of them;
 * its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
   where material was before the CL and the tool's surface is on the sweep's front, their ends
   bisected to 1e-10 rad; the slices are laid out and converted to immersion angles as the B-Rep
@@ -25,7 +27,9 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
   (:func:`contact_range`);
 * a slice band **rubs** (:mod:`fusioncut.engines.chip`) by the volume removed within its heights:
   the removed volume's integral split by the bands' edges on the same nodes;
-* the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`):
+* the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`; in
+  closed form where the part and every sweep shaping the material at its end are level and flat,
+  :func:`.area.stepwise_area`):
   the flutes' over the flute contact's height range, the shank's (the tool taken straight up at
   ``R`` above the flutes, as it is swept) over its own range above the flutes, found as the
   flutes' is;
