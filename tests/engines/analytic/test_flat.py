@@ -153,3 +153,30 @@ def test_real_level_flat_cuts_in_closed_form_as_the_adaptive_integral(monkeypatc
     for a, b in zip(closed, adaptive, strict=True):
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
         assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
+
+
+def test_the_adaptive_integral_finds_a_sliver_between_curves_crossing_a_cell(monkeypatch):
+    """fusion-posted/1117_wall_28bit.nc CL 1557 (an arc starting where a line ends, beside a pass 1 mm
+    higher): in one cell the removed region is a band a few µm wide in x between the arc's inner circle
+    and the line's side, both nearly along y there and with their extremes just outside the cell. No
+    line of the outer rule met it (5.3e-4 mm³ lost, 2.2e-5 of the CL) until the curves' crossings of
+    the cell's edges became break points; the closed form's volume is the reference."""
+    import real_programs
+    from shared_data import DATA
+
+    if not (DATA / "fusion-posted" / "1117_wall_28bit.nc").is_file():
+        pytest.skip("shared data missing")
+    toolpath, stock, default = real_programs.load(next(p for p in real_programs.PROGRAMS if p.name == "1117_wall"))
+
+    def cl_1557():
+        engine = analytic.AnalyticEngine(analytic.EngineOptions())
+        engine.start(stock)
+        maps = engine.process(toolpath, default, start_at=1557)
+        return next(maps)
+
+    closed = cl_1557()
+    monkeypatch.setattr(analytic, "all_level_flat", lambda *a: False)
+    adaptive = cl_1557()
+    assert closed.cl_index == adaptive.cl_index == 1557
+    assert closed.removed_volume > 20
+    assert adaptive.removed_volume == pytest.approx(closed.removed_volume, rel=1e-8)
