@@ -215,14 +215,42 @@ def curve_meetings_x(circles, segments, x0, y0, x1, y1):
 
 
 @njit(cache=True)
+def edge_crossings(circles, segments, ylo, yhi):
+    """Rows (x, y, owner): where the curves cross the lines y = ``ylo`` and y = ``yhi`` (a cell's
+    edges), each a place where a curve's crossing of the lines x = const enters or leaves the cell.
+    ``(r - d)(r + d)``, not ``r^2 - d^2``: a circle tangent to an edge keeps its digits."""
+    out = [(0.0, 0.0, 0.0)]  # typed for numba; the rows are out[1:]
+    for i in range(circles.shape[0]):
+        cx, cy, r = circles[i, 0], circles[i, 1], circles[i, 2]
+        for y in (ylo, yhi):
+            s = (r - (y - cy)) * (r + (y - cy))
+            if s >= 0.0:
+                w = math.sqrt(s)
+                out.append((cx - w, y, circles[i, 3]))
+                out.append((cx + w, y, circles[i, 3]))
+    for i in range(segments.shape[0]):
+        x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
+        if y1 != y0:
+            for y in (ylo, yhi):
+                t = (y - y0) / (y1 - y0)
+                if 0.0 <= t <= 1.0:
+                    out.append((x0 + t * (x1 - x0), y, segments[i, 4]))
+    res = np.empty((len(out) - 1, 3))
+    for i in range(1, len(out)):
+        res[i - 1, 0], res[i - 1, 1], res[i - 1, 2] = out[i]
+    return res
+
+
+@njit(cache=True)
 def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb):
     """Sorted x break points in [lo, hi], lo and hi among them: of the points within the rectangle
     [lo, hi] x [ylo, yhi] where a line x = const meets a curve's end or extreme, two curves meet
-    (:func:`curve_meetings_x`) or a curve crosses the rectangle's edge y = ylo or yhi (a band between
-    two curves that run along y through the cell, their extremes outside it, is then a part of its
-    own, not left to the outer rule's lines to hit), the circles' centres (a cone's apex) with them,
-    those where the removed height may bend. One outside the rectangle moves no crossing within it; one where nothing
-    is removed around it whatever the curves' sweeps do (:func:`nothing_removed_near`) bends nothing.
+    (:func:`curve_meetings_x`) or a curve crosses the rectangle's edge y = ylo or yhi
+    (:func:`edge_crossings`: a band between two curves that run along y through the cell, their
+    extremes outside it, is then a part of its own, not left to the outer rule's lines to hit), the
+    circles' centres (a cone's apex) with them, those where the removed height may bend. One outside
+    the rectangle moves no crossing within it; one where nothing is removed around it whatever the
+    curves' sweeps do (:func:`nothing_removed_near`) bends nothing.
     A segment along x = const (a line's sweep along y) crosses no line: its x is a break wherever it
     meets the rectangle. Points within :data:`MERGE_TOL` of the last one kept are one (two curves
     through one point, in round-off apart: a part between them would cost the outer rule all its
@@ -233,12 +261,6 @@ def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, z
         cand.append((cx - r, cy, o, o))
         cand.append((cx + r, cy, o, o))
         cand.append((cx, cy, o, o))
-        for y in (ylo, yhi):  # where it leaves the rectangle through its edge y = ylo or yhi
-            s = (r - (y - cy)) * (r + (y - cy))
-            if s >= 0.0:
-                w = math.sqrt(s)
-                cand.append((cx - w, y, o, o))
-                cand.append((cx + w, y, o, o))
     for i in range(segments.shape[0]):
         x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
         if x0 == x1:  # along a line x = const: no line crosses it, its x must part the lines
@@ -247,11 +269,9 @@ def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, z
             continue
         cand.append((x0, y0, segments[i, 4], segments[i, 4]))
         cand.append((x1, y1, segments[i, 4], segments[i, 4]))
-        if y1 != y0:
-            for y in (ylo, yhi):
-                t = (y - y0) / (y1 - y0)
-                if 0.0 <= t <= 1.0:
-                    cand.append((x0 + t * (x1 - x0), y, segments[i, 4], segments[i, 4]))
+    edge = edge_crossings(circles, segments, ylo, yhi)
+    for i in range(edge.shape[0]):
+        cand.append((edge[i, 0], edge[i, 1], edge[i, 2], edge[i, 2]))
     meet = curve_meetings_x(circles, segments, lo, ylo, hi, yhi)
     for i in range(meet.shape[0]):
         cand.append((meet[i, 0], meet[i, 1], meet[i, 2], meet[i, 3]))

@@ -7,12 +7,13 @@ the removed height ``max(0, min(h, top) - max(L, bottom))`` (:mod:`.volume`) is 
 footprints' boundary curves (:func:`.breaks.boundary_curves`: circles and segments). Between two
 consecutive *events* along x the curves' crossings with a line ``x = const`` keep their order: a curve's
 extreme x, a segment's end, two curves meeting (:func:`.breaks.curve_meetings_x`) and a curve meeting the
-cell's edges ``y = ylo`` or ``y = yhi``. On such a part ``[a, b]`` the removed volume is therefore
+cell's edges ``y = ylo`` or ``y = yhi`` (:func:`.breaks.edge_crossings`). On such a part ``[a, b]`` the
+removed volume is therefore
 
-    sum over the stretches k between consecutive crossings at the part's middle of
+    sum over the stretches k between consecutive curves spanning the part (the cell's edges among them) of
         c_k * integral over [a, b] of (y_upper_k(x) - y_lower_k(x)) dx
 
-with ``c_k`` the removed height at the stretch's middle and each crossing's ``y(x)`` a circle's branch
+with ``c_k`` the removed height inside the stretch and each curve's ``y(x)`` a circle's branch
 ``cy +- sqrt(r^2 - (x - cx)^2)`` (its integral in closed form, :func:`_circle_integral`) or a segment's
 line: exact up to round-off, no error estimate needed. This is the 2.5D planar cut of the B-Rep engine's
 layers, as an integral: no polygon is built.
@@ -24,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.breaks import curve_meetings_x
+from fusioncut.engines.analytic.breaks import curve_meetings_x, edge_crossings
 from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat
 from fusioncut.engines.analytic.volume import _band_overlaps, height_and_cause
 
@@ -75,24 +76,14 @@ def _events(x0, x1, ylo, yhi, circles, segments):
     x = const may change (module docstring)."""
     out = [x0, x1]
     for i in range(circles.shape[0]):
-        cx, cy, r = circles[i, 0], circles[i, 1], circles[i, 2]
-        out.append(cx - r)
-        out.append(cx + r)
-        for y in (ylo, yhi):
-            s = (r - (y - cy)) * (r + (y - cy))
-            if s >= 0.0:
-                w = math.sqrt(s)
-                out.append(cx - w)
-                out.append(cx + w)
+        out.append(circles[i, 0] - circles[i, 2])
+        out.append(circles[i, 0] + circles[i, 2])
     for i in range(segments.shape[0]):
-        sx0, sy0, sx1, sy1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
-        out.append(sx0)
-        out.append(sx1)
-        if sy1 != sy0:
-            for y in (ylo, yhi):
-                t = (y - sy0) / (sy1 - sy0)
-                if 0.0 <= t <= 1.0:
-                    out.append(sx0 + t * (sx1 - sx0))
+        out.append(segments[i, 0])
+        out.append(segments[i, 2])
+    edge = edge_crossings(circles, segments, ylo, yhi)
+    for i in range(edge.shape[0]):
+        out.append(edge[i, 0])
     meet = curve_meetings_x(circles, segments, x0, ylo, x1, yhi)
     for i in range(meet.shape[0]):
         out.append(meet[i, 0])

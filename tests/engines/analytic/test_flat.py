@@ -60,7 +60,8 @@ def _both_ways(monkeypatch, moves, tools, stock, **opts):
 @pytest.mark.parametrize("seed,decimals", [(1, None), (2, 3), (3, 3), (4, 4)])
 def test_level_flat_cuts_in_closed_form_as_the_adaptive_integral(monkeypatch, seed, decimals):
     """Random level lines and arcs of a flat end mill, exact and rounded as posts write them: each
-    CL's volume and its slices' rubbing as the adaptive integral finds them (its own tolerance)."""
+    CL's volume, contact areas and rubbing slices as the adaptive integrals find them (to their own
+    tolerance)."""
     flat, adaptive, calls = _both_ways(monkeypatch, _level_program(seed, decimals), {1: FlatEndMill(6, 20)},
                                        BoxStock((-20, -15, -10), (20, 15, 0)), slice_height=1.0)
     assert calls >= 10  # cells integrated in closed form
