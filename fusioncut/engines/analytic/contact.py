@@ -42,13 +42,15 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.cells import relevant_sweeps
-from fusioncut.engines.analytic.profile import profile_height
+from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope
 from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_holds, end_velocity, floor_within, segment_nearest,
                                                sweep_floor, sweep_lower)
 
 N_SCAN = 720
 BLOCK = 8  # scan angles tested at once (block_state)
 ANGLE_TOL = 1e-10  # rad
+N_TOUCH = 360  # angles per height scanned for the contact's height range (contact_range)
+Z_TOL = 1e-10  # mm: the contact's height range
 MANY = 12  # a grid cell holding more sweeps leaves out the dominated ones (.cells.relevant_sweeps)
 GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
 # end_cause's codes beside material_blocker's stock faces (-2..-7) and the earlier sweeps' (>= 0: 2 j, 2 j + 1)
@@ -480,3 +482,81 @@ def slice_margin(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart
             if best > 0.0:
                 return best
     return best
+
+
+def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: list[float]
+                  ) -> tuple[float, float] | None:
+    """The height range (mm above the tip) between ``bottom`` and ``top`` where the tool at the end
+    of ``args``' sweep touches material (``args`` as :func:`.contact.slice_arcs` takes them, less the
+    height, radius and slope), or None: the flutes' contact with ``(0, flute length)``, the shank's
+    with ``(flute length, inf)``.
+
+    The candidate heights are every quarter of ``dz`` and just above and below each machine height
+    of ``levels`` (the stock's top, the earlier sweeps' ends), within the range and the stock's
+    height. The lowest touching candidate is found walking up from the bottom, the highest walking
+    down from the top (the heights between them are not tested); the change from its untouched
+    neighbour is found to :data:`Z_TOL` by the Illinois variant of regula falsi on the slice's
+    material margin (:func:`.contact.slice_margin`, positive where it touches), every fourth step
+    a halving so that the bracket shrinks however the margin bends. That is the place where the
+    margin's maximum over the slice, as found, changes sign: where the contact ends on a tangency
+    whose margin peaks as a square root of the angle (a helical bore's last touch of the turn
+    before), the peak found to ~1e-12 rad is ~1e-6 mm low, and so is the height."""
+    row, pieces, stock = args[0], args[1], args[8]
+    ez = row[6]
+    seen: dict[float, float] = {}
+
+    def margin(zs: float) -> float:
+        if zs not in seen:
+            r = profile_radius(pieces, zs)
+            seen[zs] = -math.inf if r <= 0 else float(
+                slice_margin(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:], N_TOUCH))
+        return seen[zs]
+
+    def touches(zs: float) -> bool:
+        return margin(zs) > 0.0
+
+    end = min(top, stock[5] - ez + 1e-7)  # no material above the stock's top
+    if end <= bottom:
+        return None
+    zs = {min(bottom + 1e-9, end), end}
+    step = dz / 4
+    zs.update(bottom + step * k for k in range(1, math.ceil((end - bottom) / step)))
+    for level in levels:
+        for z in (level - ez - 1e-7, level - ez + 1e-7):
+            if bottom < z < end:
+                zs.add(z)
+    grid = sorted(z for z in zs if z > stock[2] - ez - 1e-7)  # nor below its bottom
+    first = next((i for i, z in enumerate(grid) if touches(z)), None)
+    if first is None:
+        return None
+    last = next(i for i in range(len(grid) - 1, first - 1, -1) if i == first or touches(grid[i]))
+
+    def edge(a: float, b: float) -> float:
+        fa, fb = margin(a), margin(b)
+        kept = 0  # +1: the last step moved b, -1: it moved a
+        for k in range(200):
+            if b - a <= Z_TOL:
+                break
+            x = 0.5 * (a + b)
+            if k % 4 != 3 and math.isfinite(fa) and math.isfinite(fb) and fa != fb:
+                x = min(max(a - fa * (b - a) / (fb - fa), a + 0.25 * Z_TOL), b - 0.25 * Z_TOL)
+            fx = margin(x)
+            if (fx > 0.0) == (fa > 0.0):
+                a, fa = x, fx
+                fb = 0.5 * fb if kept < 0 else fb  # Illinois: an end kept twice has its value halved
+                kept = -1
+            else:
+                b, fb = x, fx
+                fa = 0.5 * fa if kept > 0 else fa
+                kept = 1
+        return 0.5 * (a + b)
+
+    if first == 0 and grid[0] <= bottom + 1e-9:
+        lo = bottom  # touching from the range's bottom
+    else:
+        lo = edge(grid[first - 1] if first else bottom, grid[first])
+    if last == len(grid) - 1 and end >= top:
+        hi = top  # touching up to the range's top
+    else:
+        hi = edge(grid[last], grid[last + 1] if last + 1 < len(grid) else end + 1e-7)
+    return (lo, hi)

@@ -9,7 +9,8 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
 
 * the **removed volume** of CL k integrates ``min(h_k, top) - max(L_k, bottom)`` over its
   footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint or ``volume_rel`` of the
-  volume, whichever is looser (QUADPACK's ``epsabs`` and ``epsrel``), cell by cell: tiles
+  volume (QUADPACK's ``epsabs`` and ``epsrel``; :class:`AnalyticEngine` says how the cells share
+  them, the cells likely to hold the most volume first), cell by cell: tiles
   (:func:`tiles`), quartered while many earlier sweeps can shape the removed height in them or a
   quarter is proven to remove nothing (and is skipped), each cell integrated with only the sweeps
   that can shape it there (:mod:`.cells`); a CL whose whole footprint an earlier, deeper sweep
@@ -24,7 +25,7 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
 * the flute contact's height range (``ap``): the lowest and highest touching heights among the
   quarter slices and the heights of the stock's top and the earlier sweeps' ends (walking up from
   the bottom and down from the stock's top), each found to 1e-10 mm against its neighbour
-  (:func:`contact_range`);
+  (:func:`.contact.contact_range`);
 * a slice band **rubs** (:mod:`fusioncut.engines.chip`) by the volume removed within its heights:
   the removed volume's integral split by the bands' edges on the same nodes;
 * the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`; in
@@ -68,14 +69,14 @@ import numpy as np
 from fusioncut.engines.analytic.area import Shape, contact_area, stepwise_area
 from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
-from fusioncut.engines.analytic.contact import N_SCAN, slice_arcs, slice_margin, sweep_grid
+from fusioncut.engines.analytic.contact import N_SCAN, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.flat import all_level_flat, flat_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                 profile_radius, profile_radius_slope, rim_radius, upper_parts)
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, line_row, outside_row
-from fusioncut.engines.analytic.volume import removed_volume
+from fusioncut.engines.analytic.volume import removed_volume, rough_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
 from fusioncut.errors import InputError
@@ -95,8 +96,6 @@ FLAT_SWEEPS = 2 * CELL_SWEEPS  # a cell whose sweeps are all level and flat is i
 DOMINANCE_MOST = 4 * CELL_SWEEPS  # a cell that can still be quartered and is met by more sweeps is quartered without
 # looking for dominated ones among them (.cells.relevant_sweeps: O(n²) in the sweeps left)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
-N_TOUCH = 360  # angles per height scanned for the contact's height range
-Z_TOL = 1e-10  # mm: the contact's height range
 log = logging.getLogger("fusioncut.analytic")
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
 SWEEPS = "ipw-sweeps.npz"  # the engine state; named like the B-Rep engine's IPW files so that a
@@ -131,9 +130,11 @@ class AnalyticEngine:
 
     ``bin_size`` (mm): the sweep index's grid (None: twice the first tool's diameter).
     ``volume_tol`` (mm) and ``volume_rel``: the removed volume's integration tolerance, per mm² of
-    footprint and relative to the volume; each cell's integral stops at the looser of the two (so
-    the whole CL's error estimate is within both, summed). ``volume_rel`` is a tenth of the 1e-7
-    asked of a CL's volume (issue 26).
+    footprint and relative to the volume; each cell's integral stops at the loosest of ``volume_tol``
+    per mm² of it, ``volume_rel`` of its own volume and ``volume_rel`` of the CL's volume found so far
+    times its share of the integrated area (:meth:`_removed`), so the CL's error estimate is within
+    ``volume_tol`` x area + 2 ``volume_rel`` x volume. ``volume_rel`` is a tenth of the 1e-7 asked of
+    a CL's volume (issue 26).
     """
 
     options: EngineOptions = field(default_factory=EngineOptions)
@@ -550,6 +551,7 @@ class AnalyticEngine:
                                                   s[5], 0.0, CELL_SWEEPS, most)
 
         cells = [(c, cull(c, C, CB)) for c in tiles(x0, y0, x1, y1, TILE_RADII * scale)]
+        adaptive = []  # the cells to integrate adaptively, with their sweeps and boundary curves
         while cells:
             (cx0, cy0, cx1, cy1), (Cm, CBm, empty, keep, floors) = cells.pop()
             if empty:
@@ -578,13 +580,28 @@ class AnalyticEngine:
             if flat:
                 v, vb = flat_volume(cx0, cx1, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct,
                                     CBt, P, NP, RR, s[2], s[5], edges)
+                total += v
+                bands += vb
             else:
+                adaptive.append((cx0, cy0, cx1, cy1, Ct, CBt, circles, segments))
+        if adaptive:
+            # the CL's relative budget shared by area, the cells likely to hold the most volume first: each
+            # stops at the loosest of volume_tol per mm² of it, volume_rel of its own volume and volume_rel of
+            # the CL's volume found so far times its share of the cells' area (so the CL's error estimate is
+            # within volume_tol x area + 2 volume_rel x volume, and a cell holding a sliver of it is not held
+            # to volume_rel of the sliver)
+            area = sum((c[2] - c[0]) * (c[3] - c[1]) for c in adaptive)
+            rough = [rough_volume(c[0], c[2], c[1], c[3], row, profile.pieces, profile.radius, c[4], c[5], P, NP, RR,
+                                  s[2], s[5]) for c in adaptive]
+            for k in np.argsort(rough, kind="stable")[::-1]:
+                cx0, cy0, cx1, cy1, Ct, CBt, circles, segments = adaptive[k]
+                tol = max(self.volume_tol, self.volume_rel * total / area)
                 xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct, CBt, P,
                               NP, RR, s[2])
                 v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
-                                       P, NP, RR, s[2], s[5], self.volume_tol, self.volume_rel, edges)
-            total += v
-            bands += vb
+                                       P, NP, RR, s[2], s[5], tol, self.volume_rel, edges)
+                total += v
+                bands += vb
         return float(total), tuple(float(v) for v in bands)
 
 
@@ -616,7 +633,7 @@ def _with_own(C: np.ndarray, CB: np.ndarray, parts: list[PartSweep]) -> tuple[np
 
 def _found(args: tuple, z: float) -> np.ndarray:
     """:func:`.contact.slice_arcs` of the slice ``z`` mm above the tip (``args`` as
-    :func:`contact_range` takes them): rows (start, span, start's cause, end's cause)."""
+    :func:`.contact.contact_range` takes them): rows (start, span, start's cause, end's cause)."""
     pieces = args[1]
     return slice_arcs(args[0], pieces, args[2], z, profile_radius(pieces, z), profile_radius_slope(pieces, z),
                       *args[3:], N_SCAN)
@@ -705,81 +722,3 @@ def sweep_row(move: Move, profile: LowerProfile, tool_index: int
     row = line_row(move.start, move.end, tool_index)
     (x0, y0, _), (x1, y1, _) = move.start, move.end
     return row, (min(x0, x1) - R, min(y0, y1) - R, max(x0, x1) + R, max(y0, y1) + R), z_low
-
-
-def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: list[float]
-                  ) -> tuple[float, float] | None:
-    """The height range (mm above the tip) between ``bottom`` and ``top`` where the tool at the end
-    of ``args``' sweep touches material (``args`` as :func:`.contact.slice_arcs` takes them, less the
-    height, radius and slope), or None: the flutes' contact with ``(0, flute length)``, the shank's
-    with ``(flute length, inf)``.
-
-    The candidate heights are every quarter of ``dz`` and just above and below each machine height
-    of ``levels`` (the stock's top, the earlier sweeps' ends), within the range and the stock's
-    height. The lowest touching candidate is found walking up from the bottom, the highest walking
-    down from the top (the heights between them are not tested); the change from its untouched
-    neighbour is found to :data:`Z_TOL` by the Illinois variant of regula falsi on the slice's
-    material margin (:func:`.contact.slice_margin`, positive where it touches), every fourth step
-    a halving so that the bracket shrinks however the margin bends. That is the place where the
-    margin's maximum over the slice, as found, changes sign: where the contact ends on a tangency
-    whose margin peaks as a square root of the angle (a helical bore's last touch of the turn
-    before), the peak found to ~1e-12 rad is ~1e-6 mm low, and so is the height."""
-    row, pieces, stock = args[0], args[1], args[8]
-    ez = row[6]
-    seen: dict[float, float] = {}
-
-    def margin(zs: float) -> float:
-        if zs not in seen:
-            r = profile_radius(pieces, zs)
-            seen[zs] = -math.inf if r <= 0 else float(
-                slice_margin(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:], N_TOUCH))
-        return seen[zs]
-
-    def touches(zs: float) -> bool:
-        return margin(zs) > 0.0
-
-    end = min(top, stock[5] - ez + 1e-7)  # no material above the stock's top
-    if end <= bottom:
-        return None
-    zs = {min(bottom + 1e-9, end), end}
-    step = dz / 4
-    zs.update(bottom + step * k for k in range(1, math.ceil((end - bottom) / step)))
-    for level in levels:
-        for z in (level - ez - 1e-7, level - ez + 1e-7):
-            if bottom < z < end:
-                zs.add(z)
-    grid = sorted(z for z in zs if z > stock[2] - ez - 1e-7)  # nor below its bottom
-    first = next((i for i, z in enumerate(grid) if touches(z)), None)
-    if first is None:
-        return None
-    last = next(i for i in range(len(grid) - 1, first - 1, -1) if i == first or touches(grid[i]))
-
-    def edge(a: float, b: float) -> float:
-        fa, fb = margin(a), margin(b)
-        kept = 0  # +1: the last step moved b, -1: it moved a
-        for k in range(200):
-            if b - a <= Z_TOL:
-                break
-            x = 0.5 * (a + b)
-            if k % 4 != 3 and math.isfinite(fa) and math.isfinite(fb) and fa != fb:
-                x = min(max(a - fa * (b - a) / (fb - fa), a + 0.25 * Z_TOL), b - 0.25 * Z_TOL)
-            fx = margin(x)
-            if (fx > 0.0) == (fa > 0.0):
-                a, fa = x, fx
-                fb = 0.5 * fb if kept < 0 else fb  # Illinois: an end kept twice has its value halved
-                kept = -1
-            else:
-                b, fb = x, fx
-                fa = 0.5 * fa if kept > 0 else fa
-                kept = 1
-        return 0.5 * (a + b)
-
-    if first == 0 and grid[0] <= bottom + 1e-9:
-        lo = bottom  # touching from the range's bottom
-    else:
-        lo = edge(grid[first - 1] if first else bottom, grid[first])
-    if last == len(grid) - 1 and end >= top:
-        hi = top  # touching up to the range's top
-    else:
-        hi = edge(grid[last], grid[last + 1] if last + 1 < len(grid) else end + 1e-7)
-    return (lo, hi)
