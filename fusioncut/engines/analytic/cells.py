@@ -44,6 +44,8 @@ from fusioncut.engines.analytic.profile import profile_height
 from fusioncut.engines.analytic.sweeps import OUTSIDE, angle_windows, point_segment_distance, sweep_lower, window_span
 
 
+DOMINANCE_MOST = 48  # sweeps: a caller that quarters a cell left with more passes this as relevant_sweeps' `most`
+# (the O(n²) search for dominated sweeps is then left to the quarters)
 HOLD_TOL = 1e-12  # mm: how far a held sweep's path may reach beyond its holder's in held_below (the
 # rounding of a CL piece's radius, of a merged circle's turns)
 

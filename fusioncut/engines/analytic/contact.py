@@ -41,7 +41,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.cells import relevant_sweeps
+from fusioncut.engines.analytic.cells import DOMINANCE_MOST, relevant_sweeps
 from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope
 from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_holds, end_velocity, floor_within, segment_nearest,
                                                sweep_floor, sweep_lower)
@@ -170,7 +170,7 @@ def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.
         with only its own, as the volume's quarters are."""
         single = i1 - i0 == 1 and j1 - j0 == 1
         keep = relevant_sweeps(x0 + i0 * w, y0 + j0 * w, x0 + i1 * w, y0 + j1 * w, S, P, R, C[rows], PP, NPC, RR, zb,
-                               zt, eps, MANY, math.inf if single else 4 * MANY)[1]
+                               zt, eps, MANY, math.inf if single else DOMINANCE_MOST)[1]
         rows = rows[keep]
         if single:
             cell_items[i0 * n + j0] = rows.tolist()

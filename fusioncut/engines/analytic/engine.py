@@ -68,7 +68,7 @@ import numpy as np
 
 from fusioncut.engines.analytic.area import Shape, contact_area, stepwise_area
 from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
-from fusioncut.engines.analytic.cells import held_below, relevant_sweeps
+from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below, relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.flat import all_level_flat, flat_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
@@ -93,8 +93,6 @@ CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps i
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
 FLAT_SWEEPS = 2 * CELL_SWEEPS  # a cell whose sweeps are all level and flat is integrated in closed form (.flat)
 # whole up to this many: its integral costs less than quartering it would
-DOMINANCE_MOST = 4 * CELL_SWEEPS  # a cell that can still be quartered and is met by more sweeps is quartered without
-# looking for dominated ones among them (.cells.relevant_sweeps: O(n²) in the sweeps left)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 log = logging.getLogger("fusioncut.analytic")
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
@@ -556,14 +554,14 @@ class AnalyticEngine:
             (cx0, cy0, cx1, cy1), (Cm, CBm, empty, keep, floors) = cells.pop()
             if empty:
                 continue
-            flat = all_level_flat(row, profile.pieces, Cm[keep], P, NP)
+            Ck, CBk = Cm[keep], CBm[keep]
+            flat = all_level_flat(row, profile.pieces, Ck, P, NP)
             if cx1 - cx0 > MIN_CELL_RADII * scale and not (flat and keep.sum() <= FLAT_SWEEPS):
                 # quartered where many sweeps are left, or where a quarter is proven empty (its area
                 # then costs nothing), unless its closed form costs less (FLAT_SWEEPS); a quarter needs only
                 # its cell's sweeps: one left out there can give h nowhere in the cell (its floor over the
                 # cell is at least what h is at most)
                 mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
-                Ck, CBk = Cm[keep], CBm[keep]
                 quarters = [(q, cull(q, Ck, CBk)) for q in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1),
                                                             (mx, my, cx1, cy1))]
                 if keep.sum() > CELL_SWEEPS or any(c[1][2] for c in quarters):

@@ -73,7 +73,9 @@ def _segment_y(seg, x):
 @njit(cache=True)
 def _events(x0, x1, ylo, yhi, circles, segments):
     """Sorted x in [x0, x1], both among them, where the order of the curves' crossings along a line
-    x = const may change (module docstring)."""
+    x = const may change (module docstring): every one, unlike :func:`.breaks.x_breaks`, which leaves
+    out those where nothing is removed around and merges near ones (an adaptive rule's parts may
+    straddle a reordering; the closed form's may not)."""
     out = [x0, x1]
     for i in range(circles.shape[0]):
         out.append(circles[i, 0] - circles[i, 2])
