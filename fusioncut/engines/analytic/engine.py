@@ -16,7 +16,9 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
   that can shape it there (:mod:`.cells`); a CL whose whole footprint an earlier, deeper sweep
   holds removes nothing and is not integrated (:func:`.cells.held_below`); a cell where the CL and
   every sweep shaping it are level flat cuts is not integrated but computed in closed form
-  (:mod:`.flat`), and quartered only beyond :data:`FLAT_SWEEPS` of them;
+  (:mod:`.flat`), and quartered only beyond :data:`FLAT_SWEEPS` of them; where the CL is a flat end
+  mill's arc or helix and every sweep shaping the cell is on its axis or level, the inner integral
+  runs over the angle about the axis, in closed form (:mod:`.polar`);
 * its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
   where material was before the CL and the tool's surface is on the sweep's front, their ends
   bisected to 1e-10 rad; the slices are laid out and converted to immersion angles as the B-Rep
@@ -73,6 +75,7 @@ from fusioncut.engines.analytic.contact import N_SCAN, contact_range, slice_arcs
 from fusioncut.engines.analytic.flat import all_level_flat, flat_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
+from fusioncut.engines.analytic.polar import polar_applies, polar_volume
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                 profile_radius, profile_radius_slope, rim_radius, upper_parts)
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, line_row, outside_row
@@ -594,10 +597,14 @@ class AnalyticEngine:
             for k in np.argsort(rough, kind="stable")[::-1]:
                 cx0, cy0, cx1, cy1, Ct, CBt, circles, segments = adaptive[k]
                 tol = max(self.volume_tol, self.volume_rel * total / area)
-                xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct, CBt, P,
-                              NP, RR, s[2])
-                v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct, CBt,
-                                       P, NP, RR, s[2], s[5], tol, self.volume_rel, edges)
+                if polar_applies(row, profile.pieces, Ct, P, NP):
+                    v, vb = polar_volume(cx0, cx1, cy0, cy1, circles, segments, row, profile.pieces, profile.radius,
+                                         Ct, CBt, P, NP, RR, s[2], s[5], tol, self.volume_rel, edges)
+                else:
+                    xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct,
+                                  CBt, P, NP, RR, s[2])
+                    v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct,
+                                           CBt, P, NP, RR, s[2], s[5], tol, self.volume_rel, edges)
                 total += v
                 bands += vb
         return float(total), tuple(float(v) for v in bands)

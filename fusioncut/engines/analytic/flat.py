@@ -94,23 +94,25 @@ def _events(x0, x1, ylo, yhi, circles, segments):
 
 
 @njit(cache=True)
-def flat_volume(x0, x1, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges):
-    """(the volume removed over [x0, x1] x [ylo, yhi] (mm³), in closed form (module docstring); its parts
-    within each band [edges[i], edges[i + 1]] of machine heights). Only for sweeps that
-    :func:`all_level_flat` accepts; ``circles`` and ``segments`` are their boundary curves.
+def plane_stretches(x0, x1, ylo, yhi, circles, segments):
+    """(areas, xs, ys): the regions of the rectangle [x0, x1] x [ylo, yhi] between consecutive curves
+    (``circles`` (cx, cy, r, ...) and ``segments`` (x0, y0, x1, y1, ...)) on each part between two
+    :func:`_events`, as their areas (mm², in closed form) and one point inside each. Whatever is
+    constant between the curves is constant on each region, so its integral over the rectangle is the
+    sum of its value at the points times the areas.
 
     On a part the curves that span it (a circle's two branches, a segment) and the cell's edges are
     ordered by their mean y over it, which orders them at every x inside (they do not cross there), and
     a curve whose mean lies outside [ylo, yhi] lies outside all along (it crosses neither edge): no
-    decision rests on one line x = const, where a curve may just touch an edge (a circle's apex on it)."""
-    nb = max(edges.shape[0] - 1, 0)
-    bands = np.zeros(nb)
+    decision rests on one line x = const, where a curve may just touch an edge (a circle's apex on it).
+    The point is the middle of the region at the widest of three lines across the part (two curves that
+    meet at an end of the part, or touch inside it, leave no width at that line)."""
     xs = _events(x0, x1, ylo, yhi, circles, segments)
     nc, ns = circles.shape[0], segments.shape[0]
     means = np.empty(2 * nc + ns + 2)
     ints = np.empty(2 * nc + ns + 2)
     ids = np.empty(2 * nc + ns + 2, dtype=np.int64)
-    total = 0.0
+    areas, px, py = [0.0], [0.0], [0.0]  # typed for numba; the regions are [1:]
     for p in range(xs.shape[0] - 1):
         a, b = xs[p], xs[p + 1]
         if b <= a:
@@ -137,27 +139,41 @@ def flat_volume(x0, x1, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR
             area = ints[hi] - ints[lo]
             if area <= 0.0:
                 continue
-            # the height at the middle of the stretch where it is widest of three lines (two curves that
-            # meet at an end of the part, or touch inside it, leave no width at that line)
             best, xb = -1.0, xm
             for x in (a + 0.25 * (b - a), xm, a + 0.75 * (b - a)):
                 gap = _branch_y(ids[hi], x, ylo, yhi, circles, segments, nc) - \
                     _branch_y(ids[lo], x, ylo, yhi, circles, segments, nc)
                 if gap > best:
                     best, xb = gap, x
-            y = 0.5 * (_branch_y(ids[hi], xb, ylo, yhi, circles, segments, nc)
-                       + _branch_y(ids[lo], xb, ylo, yhi, circles, segments, nc))
-            v, _, own = height_and_cause(xb, y, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-            if v > 0.0:
-                total += v * area
-                if nb > 0:
-                    _band_overlaps(max(own, zb), v, edges, bands, area)
+            areas.append(area)
+            px.append(xb)
+            py.append(0.5 * (_branch_y(ids[hi], xb, ylo, yhi, circles, segments, nc)
+                             + _branch_y(ids[lo], xb, ylo, yhi, circles, segments, nc)))
+    return np.array(areas[1:]), np.array(px[1:]), np.array(py[1:])
+
+
+@njit(cache=True)
+def flat_volume(x0, x1, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges):
+    """(the volume removed over [x0, x1] x [ylo, yhi] (mm³), in closed form (module docstring); its parts
+    within each band [edges[i], edges[i + 1]] of machine heights). Only for sweeps that
+    :func:`all_level_flat` accepts; ``circles`` and ``segments`` are their boundary curves, between which
+    the removed height is constant (:func:`plane_stretches`)."""
+    nb = max(edges.shape[0] - 1, 0)
+    bands = np.zeros(nb)
+    areas, xs, ys = plane_stretches(x0, x1, ylo, yhi, circles, segments)
+    total = 0.0
+    for i in range(areas.shape[0]):
+        v, _, own = height_and_cause(xs[i], ys[i], S, P, R, C, CB, PP, NPC, RR, zb, zt)
+        if v > 0.0:
+            total += v * areas[i]
+            if nb > 0:
+                _band_overlaps(max(own, zb), v, edges, bands, areas[i])
     return total, bands
 
 
 @njit(cache=True)
 def _branch_y(i, x, ylo, yhi, circles, segments, nc):
-    """The y of curve ``i`` (:func:`flat_volume`'s numbering) at ``x``."""
+    """The y of curve ``i`` (:func:`plane_stretches`' numbering) at ``x``."""
     if i == -1:
         return ylo
     if i == -2:
@@ -172,7 +188,7 @@ def _branch_y(i, x, ylo, yhi, circles, segments, nc):
 
 @njit(cache=True)
 def _branch_integral(i, a, b, ylo, yhi, circles, segments, nc):
-    """integral over x in [a, b] of curve ``i``'s y (:func:`flat_volume`'s numbering)."""
+    """integral over x in [a, b] of curve ``i``'s y (:func:`plane_stretches`' numbering)."""
     if i == -1:
         return ylo * (b - a)
     if i == -2:

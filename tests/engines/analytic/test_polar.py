@@ -1,0 +1,153 @@
+"""A flat end mill's arcs and helices in polar coordinates (.polar): closed forms of helical bores, and
+each CL against the adaptive integral (.volume)."""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+import fusioncut.engines.analytic.engine as analytic
+from fusioncut.model import ArcMove, BallEndMill, BoxStock, FlatEndMill, LinearMove
+from tests.engines.analytic.test_engine import AREA_REL, VOLUME_REL, run
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
+
+
+def _bore(rho: float, turns: int, pitch: float, decimals: int | None = None, z0: float = 1.0) -> list:
+    """A helical bore about (1, 2): from a rapid above, ``turns`` counter-clockwise turns of radius ``rho``
+    going down ``pitch`` mm a turn from ``z0``, then a level circle at the bottom and out; coordinates
+    rounded to ``decimals`` as a post writes them (None: not)."""
+    def q(v: float) -> float:
+        return v if decimals is None else round(v, decimals)
+
+    c = (1.0, 2.0)
+    p = (q(c[0] + rho), q(c[1]), z0)
+    moves = [LinearMove((p[0], p[1], 5.0), p, rapid=True, tool=1)]
+    z = z0
+    for _ in range(turns):
+        for half in (math.pi, 0.0):  # half turns, as posts write helices
+            end = (q(c[0] + rho * math.cos(half)), q(c[1] + rho * math.sin(half)), q(z - pitch / 2))
+            moves.append(ArcMove(p, end, feed=600.0, tool=1, center=(c[0], c[1], p[2])))
+            p, z = end, z - pitch / 2
+    moves.append(ArcMove(p, p, feed=600.0, tool=1, center=(c[0], c[1], p[2])))
+    moves.append(LinearMove(p, (p[0], p[1], 5.0), rapid=True, tool=1))
+    return moves
+
+
+def _spied(monkeypatch) -> list:
+    calls = []
+    polar = analytic.polar_volume
+    monkeypatch.setattr(analytic, "polar_volume", lambda *a: calls.append(1) or polar(*a))
+    return calls
+
+
+@pytest.mark.parametrize("rho", [1.2, 4.0])
+def test_a_helical_bore_removes_its_cylinder(monkeypatch, rho):
+    """A flat end mill (R = 3) going down a helix from above the stock, then round once at the bottom,
+    leaves a hole of radius rho + R, depth D (rho < R), or an annulus round a core of radius rho - R
+    (rho > R): its CLs' volumes add up to pi (rho + R)^2 D, or 4 pi rho R D."""
+    calls = _spied(monkeypatch)
+    depth = 4.0
+    _, maps = run(_bore(rho, turns=5, pitch=1.0), {1: FlatEndMill(6, 20)}, BoxStock((-12, -12, -10), (12, 12, 0)),
+                  slice_height=1.0)
+    R = 3.0
+    expected = math.pi * (rho + R) ** 2 * depth if rho < R else 4 * math.pi * rho * R * depth
+    assert sum(m.removed_volume for m in maps) == pytest.approx(expected, rel=1e-7)
+    assert all(m.engine == "analytic" for m in maps)
+    assert len(calls) > 50  # cells integrated in polar coordinates
+
+
+@pytest.mark.parametrize("rho,decimals", [(0.375, None), (0.375, 3), (1.475, 3), (2.5, 4)])
+def test_helices_in_polar_coordinates_as_the_adaptive_integral(monkeypatch, rho, decimals):
+    """Helical bores of a flat end mill (R = 1.325, as fusion-posted/1110_wall's Bore1), exact and rounded
+    as posts write them, entering a stock faced 0.5 mm lower on one side by an earlier level pass (a
+    level sweep off the axis): each CL's volume, contact areas and rubbing slices as the adaptive
+    integral finds them (to its own tolerance)."""
+    face = [LinearMove((-4.0, -4.0, 5.0), (-4.0, -4.0, -0.5), rapid=True, tool=1),
+            LinearMove((-4.0, -4.0, -0.5), (-4.0, 8.0, -0.5), feed=600.0, tool=1),
+            LinearMove((-4.0, 8.0, -0.5), (-4.0, 8.0, 5.0), rapid=True, tool=1)]
+    moves = face + _bore(rho, turns=3, pitch=0.5, decimals=decimals, z0=0.2)
+    tools, stock = {1: FlatEndMill(2.65, 15)}, BoxStock((-8, -6, -6), (8, 10, 0))
+    calls = _spied(monkeypatch)
+    _, polar = run(moves, tools, stock, slice_height=0.5)
+    assert len(calls) > 20
+    monkeypatch.setattr(analytic, "polar_applies", lambda *a: False)
+    _, adaptive = run(moves, tools, stock, slice_height=0.5)
+    assert sum(m.removed_volume for m in polar) > 10
+    for a, b in zip(polar, adaptive, strict=True):
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
+        assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
+        assert a.rubbing_slices == b.rubbing_slices, a.cl_index
+        assert a.engine == b.engine == "analytic"
+
+
+def test_another_tool_or_an_arc_off_the_axis_stays_adaptive(monkeypatch):
+    """A ball end mill's helix, and a flat one's helix beside an earlier arc about another centre: the
+    cells they shape are not integrated in polar coordinates (the lower surfaces are not linear in the
+    angle there), and their volumes stay those of the adaptive integral."""
+    calls = _spied(monkeypatch)
+    run(_bore(1.0, turns=2, pitch=1.0), {1: BallEndMill(6, 20)}, BoxStock((-8, -8, -6), (8, 8, 0)))
+    assert not calls
+    off = [LinearMove((-2.0, 2.0, 5.0), (-2.0, 2.0, -1.5), rapid=True, tool=1),
+           ArcMove((-2.0, 2.0, -1.5), (-2.0, 2.0, -2.5), feed=600.0, tool=1, center=(-0.5, 2.0, -1.5)),
+           LinearMove((-2.0, 2.0, -2.5), (-2.0, 2.0, 5.0), rapid=True, tool=1)]
+    moves = off + _bore(1.0, turns=2, pitch=1.0)
+    tools, stock = {1: FlatEndMill(6, 20)}, BoxStock((-8, -8, -6), (8, 8, 0))
+    _, maps = run(moves, tools, stock)
+    monkeypatch.setattr(analytic, "polar_applies", lambda *a: False)
+    _, adaptive = run(moves, tools, stock)
+    for a, b in zip(maps, adaptive, strict=True):
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
+
+
+def test_real_helical_bores_in_polar_coordinates_as_the_adaptive_integral(monkeypatch):
+    """fusion-posted/1110_wall_265bit.nc, Bore1's CLs 2495-2544 (its lead-in and first helix turns, rho
+    1.475) and 4100-4129 (a helix of rho 0.375 over one of 0.275 down the same hole): each CL's volume
+    as the adaptive integral finds it."""
+    import real_programs
+    from shared_data import DATA
+
+    if not (DATA / "fusion-posted" / "1110_wall_265bit.nc").is_file():
+        pytest.skip("shared data missing")
+    toolpath, stock, default = real_programs.load(next(p for p in real_programs.PROGRAMS if p.name == "1110_wall"))
+
+    def window(start: int, n: int) -> list:
+        engine = analytic.AnalyticEngine(analytic.EngineOptions())
+        engine.start(stock)
+        maps = engine.process(toolpath, default, start_at=start)
+        return [next(maps) for _ in range(n)]
+
+    calls = _spied(monkeypatch)
+    polar = window(2495, 50) + window(4100, 30)
+    assert len(calls) > 100
+    monkeypatch.setattr(analytic, "polar_applies", lambda *a: False)
+    adaptive = window(2495, 50) + window(4100, 30)
+    assert sum(m.removed_volume for m in polar) > 10
+    for a, b in zip(polar, adaptive, strict=True):
+        assert a.cl_index == b.cl_index
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
+
+
+def test_polar_cells_as_horizontal_slices_find_them(monkeypatch):
+    """Each cell of a helical bore's CLs entering a faced stock (the case whose kink, where the helix's
+    tip crosses the stock's top at an end of a window, once cost 1e-7 of a CL), integrated tightly in
+    polar coordinates and as the integral over heights of exact cross-sections (tests' sliced_oracle,
+    a third way): the same volume to 1e-12 mm³."""
+    from tests.engines.analytic.sliced_oracle import sliced_volume
+
+    cells = []
+    polar = analytic.polar_volume
+    monkeypatch.setattr(analytic, "polar_volume", lambda *a: cells.append(a) or polar(*a))
+    face = [LinearMove((-4.0, -4.0, 5.0), (-4.0, -4.0, -0.5), rapid=True, tool=1),
+            LinearMove((-4.0, -4.0, -0.5), (-4.0, 8.0, -0.5), feed=600.0, tool=1),
+            LinearMove((-4.0, 8.0, -0.5), (-4.0, 8.0, 5.0), rapid=True, tool=1)]
+    run(face + _bore(0.375, turns=1, pitch=0.5, z0=0.2), {1: FlatEndMill(2.65, 15)},
+        BoxStock((-8, -6, -6), (8, 10, 0)), slice_height=0.5)
+    assert len(cells) > 20
+    for a in cells[::3]:
+        x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, _, _, edges = a
+        exact = polar(*a[:16], 1e-14, 1e-14, edges)[0]
+        sliced = sliced_volume(x0, x1, y0, y1, S, P, R, C, CB, PP, NPC, RR, zb, zt, 1e-14, 1e-14, edges)[0]
+        assert exact == pytest.approx(sliced, rel=1e-10, abs=1e-12)
