@@ -414,6 +414,40 @@ def _gk_r(a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends
 
 
 @njit(cache=True)
+def _held(S, P, C, PP, NPC, RR):
+    """Rows (r0, r1): annuli about the CL's axis where nothing can be removed, each held by an earlier arc
+    on the axis of a turn or more: its tool covers every point of [|rho - R|, rho + R] (rho > R) or
+    [0, rho + R] on each turn, so its lower surface there is at most the highest tip of its lowest turn
+    (the last going down, the first going up), and where that is no higher than the CL's lowest tip,
+    the CL's lower surface is nowhere below it."""
+    own = min(S[3], S[6]) + P[0, 3]
+    out = [(0.0, -1.0)]  # typed for numba; the rows are [1:]
+    for j in range(C.shape[0]):
+        sw = abs(C[j, 11])
+        if not (_on_axis(C[j], S[7], S[8]) and sw >= _TWO_PI):
+            continue
+        k = int(C[j, 12])
+        z0, z1 = C[j, 3] + PP[k, 0, 3], C[j, 6] + PP[k, 0, 3]
+        top = z0 + (z1 - z0) * (1.0 - _TWO_PI / sw) if z1 < z0 else z0 + (z1 - z0) * _TWO_PI / sw
+        if top <= own:
+            rho, Rj = C[j, 9], RR[k]
+            out.append((max(rho - Rj, 0.0), rho + Rj))
+    res = np.empty((len(out) - 1, 2))
+    for i in range(1, len(out)):
+        res[i - 1, 0], res[i - 1, 1] = out[i]
+    return res
+
+
+@njit(cache=True, inline="always")
+def _within(a, b, held):
+    """Whether [a, b] lies in one of the annuli ``held``."""
+    for i in range(held.shape[0]):
+        if held[i, 0] <= a and b <= held[i, 1]:
+            return True
+    return False
+
+
+@njit(cache=True)
 def polar_volume(x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol, rel, edges):
     """(the volume removed over [x0, x1] x [y0, y1] (mm³), to ``tol`` mm per mm² of the cell or ``rel`` of
     the volume, whichever is looser; its parts within each band [edges[i], edges[i + 1]] of machine
@@ -430,8 +464,9 @@ def polar_volume(x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR,
     err = np.empty(_PANELS)
     bands = np.zeros((_PANELS, nb))
     n = 0
+    held = _held(S, P, C, PP, NPC, RR)
     for p in range(rs.shape[0] - 1):
-        if rs[p + 1] > rs[p] and n < _PANELS:
+        if rs[p + 1] > rs[p] and n < _PANELS and not _within(rs[p], rs[p + 1], held):
             lo[n], hi[n] = rs[p], rs[p + 1]
             val[n], err[n] = _gk_r(lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends,
                                    circles, segments, edges, bands[n])

@@ -59,6 +59,28 @@ def test_a_helical_bore_removes_its_cylinder(monkeypatch, rho):
     assert len(calls) > 50  # cells integrated in polar coordinates
 
 
+def test_a_wider_helix_down_a_bored_hole_removes_the_ring_between(monkeypatch):
+    """As fusion-posted/1110_wall's Bore1: a helix of radius 0.275, then one of 0.375 down the same hole
+    (R = 1.325, 0.5 mm a turn, 4 mm deep): the second removes the ring between radii 1.6 and 1.7 all
+    the way down, pi (1.7^2 - 1.6^2) D, CL by CL as the adaptive integral finds it; inside 1.6 each
+    of its cells is proven to remove nothing (the first helix's lowest turn holds it) and skipped."""
+    R, depth = 1.325, 4.0
+    first = _bore(0.275, turns=8, pitch=0.5, z0=0.0)
+    moves = first + _bore(0.375, turns=8, pitch=0.5, z0=0.0)
+    tools, stock = {1: FlatEndMill(2 * R, 15)}, BoxStock((-6, -6, -6), (8, 8, 0))
+    _, alone = run(first, tools, stock)
+    calls = _spied(monkeypatch)
+    _, maps = run(moves, tools, stock)
+    assert sum(m.removed_volume for m in alone) == pytest.approx(math.pi * 1.6 ** 2 * depth, rel=1e-7)
+    second = sum(m.removed_volume for m in maps[len(alone):])
+    assert second == pytest.approx(math.pi * (1.7 ** 2 - 1.6 ** 2) * depth, rel=1e-7)
+    assert len(calls) > 50
+    monkeypatch.setattr(analytic, "polar_applies", lambda *a: False)
+    _, adaptive = run(moves, tools, stock)
+    for a, b in zip(maps, adaptive, strict=True):
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
+
+
 @pytest.mark.parametrize("rho,decimals", [(0.375, None), (0.375, 3), (1.475, 3), (2.5, 4)])
 def test_helices_in_polar_coordinates_as_the_adaptive_integral(monkeypatch, rho, decimals):
     """Helical bores of a flat end mill (R = 1.325, as fusion-posted/1110_wall's Bore1), exact and rounded
@@ -151,3 +173,26 @@ def test_polar_cells_as_horizontal_slices_find_them(monkeypatch):
         exact = polar(*a[:16], 1e-14, 1e-14, edges)[0]
         sliced = sliced_volume(x0, x1, y0, y1, S, P, R, C, CB, PP, NPC, RR, zb, zt, 1e-14, 1e-14, edges)[0]
         assert exact == pytest.approx(sliced, rel=1e-10, abs=1e-12)
+
+
+def test_a_turn_of_an_earlier_helix_holds_its_annulus():
+    """polar._held: an earlier helix on the CL's axis holds [max(rho - R, 0), rho + R] where the highest
+    tip of its lowest turn is no higher than the CL's lowest tip; less than a turn, a higher turn, or
+    another axis hold nothing."""
+    import numpy as np
+
+    from fusioncut.engines.analytic.polar import _held
+    from fusioncut.engines.analytic.sweeps import arc_row
+
+    P = np.array([[0.0, 0.0, 1.0, 0.0, 0.0, 0.0]])  # a flat end mill's lower profile (f = 0)
+    PP, NPC, RR = P[None], np.array([1]), np.array([1.0])
+    own = arc_row((2.5, 0, -3.0), (2.5, 0, -3.1), (0, 0), 2.5, 0.0, 0.5, 0)
+    down = arc_row((0.5, 0, 0.0), (0.5, 0, -5.0), (0, 0), 0.5, 0.0, 4 * 2 * np.pi, 0)  # 4 turns, 1.25 mm a turn
+    assert _held(own, P, down[None], PP, NPC, RR).tolist() == [[0.0, 1.5]]  # its last turn tops at -3.75
+    wide = arc_row((2.0, 0, 0.0), (2.0, 0, -5.0), (0, 0), 2.0, 0.0, 4 * 2 * np.pi, 0)
+    assert _held(own, P, wide[None], PP, NPC, RR).tolist() == [[1.0, 3.0]]
+    shallow = arc_row((0.5, 0, 0.0), (0.5, 0, -4.0), (0, 0), 0.5, 0.0, 4 * 2 * np.pi, 0)  # tops at -3 > -3.1
+    part = arc_row((0.5, 0, 0.0), (0.5, 0, -5.0), (0, 0), 0.5, 0.0, 6.0, 0)  # less than a turn
+    aside = arc_row((0.5, 1e-6, 0.0), (0.5, 1e-6, -5.0), (0, 1e-6), 0.5, 0.0, 4 * 2 * np.pi, 0)
+    for row in (shallow, part, aside):
+        assert _held(own, P, row[None], PP, NPC, RR).shape == (0, 2)
