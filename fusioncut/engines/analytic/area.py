@@ -55,8 +55,6 @@ MAX_CHANGES = 8  # changes of shape located one after the other between two of a
 CLUSTER = 1e-5  # ... each at least this share of those nodes' spacing past the last
 MAX_EVALS = 1500  # evaluations of W(z) one CL's area may take: a bound, not the usual stop (the error estimate)
 _LINE = 0.0
-STEP_PROBE = 1e-6  # stepwise_area checks a part's W this share of it inside its ends
-STEP_W_TOL = 1e-9  # rad: ... and takes it as constant where it stays this close to its middle's
 Shape = tuple[int, tuple[float, ...]]  # the engaged arcs' number and their ends' causes (engine._width)
 # Gauss-Kronrod (7, 15) on [-1, 1] (:mod:`.volume`'s nodes): the Kronrod nodes, 0 among them, and
 # the Kronrod and Gauss weights (0 at the Kronrod-only nodes)
@@ -225,24 +223,3 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
         add(p, a, m)
         add(p, m, b)
     return sum(q[3] for q in parts), -sum(q[0] for q in parts)
-
-
-def stepwise_area(width: Callable[[float], tuple[float, Shape]], radius: float, z_lo: float, z_hi: float,
-                  breaks: Sequence[float]) -> float | None:
-    """The contact area (mm²) of a cylinder of ``radius`` mm between heights ``z_lo`` and ``z_hi`` (mm above
-    the tip) where ``W`` is constant between ``breaks`` (a flat end mill's flank cutting level among level
-    cuts of flat end mills: the material on a circle of the flank is the same at every height between two
-    of their floors), in closed form: ``radius * W * dz`` summed over the parts. Each part's ``W`` is
-    taken at its middle and checked at both ends (a :data:`STEP_PROBE` share of it inside); None where
-    the arcs' shape differs there: ``W`` then changes at a height ``breaks`` lacks, and the adaptive rule
-    (:func:`contact_area`) must find it."""
-    cuts = sorted({z_lo, z_hi, *(z for z in breaks if z_lo < z < z_hi)})
-    area = 0.0
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        w, shape = width(0.5 * (a + b))
-        for z in (a + STEP_PROBE * (b - a), b - STEP_PROBE * (b - a)):
-            wz, sz = width(z)
-            if sz != shape or abs(wz - w) > STEP_W_TOL:
-                return None
-        area += radius * w * (b - a)
-    return area

@@ -30,9 +30,8 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
   (:func:`.contact.contact_range`);
 * a slice band **rubs** (:mod:`fusioncut.engines.chip`) by the volume removed within its heights:
   the removed volume's integral split by the bands' edges on the same nodes;
-* the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`; in
-  closed form where the part and every sweep shaping the material at its end are level and flat,
-  :func:`.area.stepwise_area`):
+* the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`; a flat
+  end mill's side, the engaged heights around it, :mod:`.cylinder`):
   the flutes' over the flute contact's height range, the shank's (the tool taken straight up at
   ``R`` above the flutes, as it is swept) over its own range above the flutes, found as the
   flutes' is;
@@ -68,17 +67,18 @@ from pathlib import Path
 
 import numpy as np
 
-from fusioncut.engines.analytic.area import Shape, contact_area, stepwise_area
+from fusioncut.engines.analytic.area import Shape, contact_area
 from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below, relevant_sweeps
 from fusioncut.engines.analytic.contact import N_SCAN, contact_range, slice_arcs, sweep_grid
+from fusioncut.engines.analytic.cylinder import side_area
 from fusioncut.engines.analytic.flat import all_level_flat, flat_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.polar import polar_applies, polar_volume
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                 profile_radius, profile_radius_slope, rim_radius, upper_parts)
-from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, line_row, outside_row
+from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row
 from fusioncut.engines.analytic.volume import removed_volume, rough_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
@@ -96,6 +96,7 @@ CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps i
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
 FLAT_SWEEPS = 2 * CELL_SWEEPS  # a cell whose sweeps are all level and flat is integrated in closed form (.flat)
 # whole up to this many: its integral costs less than quartering it would
+SIDE_REL = 1e-9  # a flat end mill's side contact area's tolerance, relative (.cylinder)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 log = logging.getLogger("fusioncut.analytic")
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
@@ -422,12 +423,12 @@ class AnalyticEngine:
             wider = upper_parts(tool)
             if z_range is not None:
                 breaks = _area_breaks(shaping, PP, NPC, top - ez, ez)
-                flute_area = self._area(args, cut, shaping, z_range, breaks)
+                flute_area = self._area(args, cut, z_range, breaks)
                 # the cutting part taken straight up, as it is swept, up to the first wider part
                 shank = contact_range(args, tool.flute_length, wider[0].height if wider else math.inf, dz, levels) \
                     if z_range[1] >= tool.flute_length else None
                 if shank is not None:
-                    shank_area = self._area(args, cut, shaping, shank, breaks)
+                    shank_area = self._area(args, cut, shank, breaks)
                     warnings += _narrow_neck(tool, profile, shank)
             for i, p in enumerate(parts[1:], 1):
                 # a wider neck or shank touches wherever it meets material, up to the next wider part
@@ -437,7 +438,7 @@ class AnalyticEngine:
                 rng = contact_range(p_args, 0.0, p_top, dz, p_levels)
                 if rng is not None:
                     p_breaks = _area_breaks(p_shaping, PP, NPC, top - p.row[6], p.row[6])
-                    shank_area += self._area(p_args, p, p_shaping, rng, p_breaks)
+                    shank_area += self._area(p_args, p, rng, p_breaks)
             timings["area"] = (time.perf_counter() - t3) * 1e3
             outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
                                  method=SweepMethod.EXACT, timings=timings, z_range=z_range,
@@ -450,19 +451,25 @@ class AnalyticEngine:
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))
 
-    def _area(self, args: tuple, part: PartSweep, shaping: np.ndarray, z_range: tuple[float, float],
+    def _area(self, args: tuple, part: PartSweep, z_range: tuple[float, float],
               breaks: list[float]) -> float:
         """The contact area (mm²) of ``part``'s surface between the heights ``z_range`` (mm above its tip)
-        at the CL's end: in closed form where it and every sweep shaping the material there are level and
-        flat (:func:`.area.stepwise_area`, the stock's bottom one more break), else adaptively
-        (:func:`.area.contact_area`)."""
-        PP, NPC = self._tools.profiles, self._tools.counts
-        if all_level_flat(part.row, part.profile.pieces, shaping, PP, NPC):
-            area = stepwise_area(lambda z: _width(args, z), part.profile.radius, *z_range,
-                                 [*breaks, self.stock[2] - part.row[6]])
-            if area is not None:
-                return area
+        at the CL's end: a flat end mill's side (or a wider part's) by one integral around it of the
+        engaged heights (:func:`.cylinder.side_area`, the sweeps the end's grid keeps), another tool's by
+        the integral of the engaged span over its height (:func:`.area.contact_area`)."""
+        if is_flat(part.profile.pieces):
+            near = np.unique(args[-1])
+            C, CB = args[3][near], args[4][near]
+            circles, segments = self._curves(np.vstack([part.row[None, :], C]), args[5], args[6])
+            return float(side_area(part.row, part.profile.pieces, part.profile.radius, *z_range, C, CB, *args[5:10],
+                                   circles, segments, SIDE_REL)[0])
         return contact_area(lambda z: _width(args, z), part.profile.pieces, *z_range, breaks)[0]
+
+    def _curves(self, rows: np.ndarray, P: np.ndarray, NP: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`.breaks.boundary_curves` of the sweeps ``rows`` (tool tables ``P``, ``NP``)."""
+        pieces = [P[int(r[12]), :NP[int(r[12])]] for r in rows]
+        radii = [_break_radii(r, pc, (self.stock[2], self.stock[5])) for r, pc in zip(rows, pieces)]
+        return boundary_curves(rows, radii, [rim_radius(pc) for pc in pieces])
 
     def _end_args(self, part: PartSweep, parts: list[PartSweep], C: np.ndarray, CB: np.ndarray
                   ) -> tuple[tuple, np.ndarray]:
@@ -574,10 +581,7 @@ class AnalyticEngine:
             # closed-form floors skip them (volume.height_and_cause)
             order = np.flatnonzero(keep)[np.argsort(floors[keep], kind="stable")]
             Ct, CBt = Cm[order], CBm[order]
-            rows = np.vstack([row[None, :], Ct])
-            pieces = [P[int(r[12]), :NP[int(r[12])]] for r in rows]
-            radii = [_break_radii(r, pc, (s[2], s[5])) for r, pc in zip(rows, pieces)]
-            circles, segments = boundary_curves(rows, radii, [rim_radius(pc) for pc in pieces])
+            circles, segments = self._curves(np.vstack([row[None, :], Ct]), P, NP)
             if flat:
                 v, vb = flat_volume(cx0, cx1, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct,
                                     CBt, P, NP, RR, s[2], s[5], edges)

@@ -14,7 +14,7 @@ where the window's end meets the path angle ``e`` at that height: those are ends
 sweep, a plunge and a round bar's outside have one constant lower surface over their footprint, which
 the circle of radius ``r`` enters and leaves where it crosses their boundary curves
 (:func:`.breaks.boundary_curves`). So along that circle, between the angles where any of that
-happens or the circle crosses a cell's edge (:func:`_ring_breaks`), every lower surface is linear in
+happens or the circle crosses a cell's edge (:func:`ring_breaks`), every lower surface is linear in
 ``theta``, and the removed height ``max(0, min(h, z_top) - max(L, z_bottom))`` (:mod:`.volume`) is
 piecewise linear with corners where two of those lines cross, found in closed form: its integral
 over the angle is exact (trapezoids between the corners, :func:`ring_integral`), and so are its parts
@@ -134,7 +134,7 @@ def _axial(S, P, R, C, PP, NPC, RR, zb, zt):
 
 
 @njit(cache=True)
-def _ring_breaks(r, cx, cy, x0, x1, y0, y1, axial, ends, circles, segments):
+def ring_breaks(r, cx, cy, x0, x1, y0, y1, axial, ends, circles, segments):
     """Sorted angles in [-pi, pi], both ends among them, along the circle of radius ``r`` about
     (cx, cy) between which every lower surface and the removed height are linear (module docstring):
     its crossings of the cell's edges, of the ``circles`` and ``segments`` (:func:`.breaks.boundary_curves`'
@@ -200,7 +200,7 @@ def ring_integral(r, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial,
     cell [x0, x1] x [y0, y1] (mm², no factor ``r``), exact (module docstring); its parts within each
     band [edges[i], edges[i + 1]] are added to ``bands``."""
     cx, cy = S[7], S[8]
-    ts = _ring_breaks(r, cx, cy, x0, x1, y0, y1, axial, ends, circles, segments)
+    ts = ring_breaks(r, cx, cy, x0, x1, y0, y1, axial, ends, circles, segments)
     nb = max(edges.shape[0] - 1, 0)
     nc = C.shape[0]
     fa = np.empty(nc + 1)  # the surfaces at the interval's ends: the CL's first, then the earlier ones

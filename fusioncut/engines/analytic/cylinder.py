@@ -1,0 +1,128 @@
+"""Contact area of a flat end mill's side at a CL's end: one integral around the tool.
+
+Machine frame, mm, radians. A flat end mill's surface of revolution is its flat end (no angular
+extent: not counted, :mod:`.area`) and its side, the cylinder of radius ``R`` about the axis at the
+CL's end ``e``. A point of the side at angle ``theta`` and height ``z`` is engaged (:mod:`.contact`)
+when
+
+* it lies ahead: ``u(theta) . v_xy >= 0`` (:func:`.contact.front_limits`; on the cylinder
+  ``rho' = 0``, so the front's closed form does not depend on ``z``),
+* the stock held material there: ``q = e + R u(theta)`` strictly inside the stock's box, ``z`` strictly
+  between its bottom and top, and below every earlier sweep's lower surface less ``eps``
+  (:func:`.contact.material_blocker`): ``z < H(q) = min_j L_j(q) - eps``, footprints widened by ``eps``,
+* and, on an arc, no earlier position of the CL holds it by more than ``eps``: a flat end mill's tool
+  at ``t`` holds ``(q, z)`` iff ``|q - c(t)| < R`` and ``z >= z(t)``, so that is ``z < m(q)``, the least
+  tip height over the positions within ``R - eps`` of ``q`` (:func:`.sweeps.arc_lower` with the
+  footprint narrowed by ``eps``; :func:`.contact._past_own_turns`).
+
+Each condition but the first bounds ``z`` on one side, and none depends on ``z`` otherwise, so the
+engaged heights at ``theta`` are one interval, and the contact area between heights ``z_lo`` and
+``z_hi`` above the tip is
+
+    area = R * integral over the angles ahead of
+           max(0, min(e_z + z_hi, z_top, H(q), m(q)) - max(e_z + z_lo, z_bottom)) dtheta      (mm²)
+
+where ``q`` lies inside the stock's box: a one-dimensional integral of lower surfaces, where
+:func:`.area.contact_area` integrates the engaged span ``W(z)``, each a scan of the slice. The
+integrand jumps where ``q`` crosses a footprint's edge or a face of the stock and bends where its
+lower surfaces do (:func:`.breaks.boundary_curves`, whose crossings with the tool's circle are
+found in closed form, :func:`.polar.ring_breaks`), and where two of the bounds cross: adaptive
+Gauss-Kronrod (7, 15) between those angles, with a global error budget (as :mod:`.volume`) and the
+map of :func:`.volume._smooth` on each part (a footprint's edge crossed tangentially ends in a
+square root).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fusioncut.engines.analytic.contact import front_limits
+from fusioncut.engines.analytic.polar import ring_breaks
+from fusioncut.engines.analytic.sweeps import ARC, end_velocity, sweep_lower
+from fusioncut.engines.analytic.volume import _PANELS, MIN_PART, _error, _node, _smooth, _worst
+
+
+@njit(cache=True)
+def _height(theta, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps):
+    """The engaged height (mm) of the side at machine angle ``theta`` between the machine heights z0 and
+    z1 (module docstring), the front's test left to the caller."""
+    qx, qy = S[4] + R * math.cos(theta), S[5] + R * math.sin(theta)
+    if not (stock[0] < qx < stock[3] and stock[1] < qy < stock[4]):
+        return 0.0
+    low = max(z0, stock[2])
+    high = min(z1, stock[5])
+    if S[0] == ARC:
+        high = min(high, sweep_lower(S, P, R, qx, qy, -eps))
+    for j in range(C.shape[0]):
+        if high <= low:
+            return 0.0
+        if qx < CB[j, 0] - eps or qx > CB[j, 2] + eps or qy < CB[j, 1] - eps or qy > CB[j, 3] + eps:
+            continue
+        if C[j, 3] - eps >= high and C[j, 6] - eps >= high:
+            continue  # its lower surface is nowhere below its path's lowest tip
+        k = int(C[j, 12])
+        high = min(high, sweep_lower(C[j], PP[k, :NPC[k]], RR[k], qx, qy, eps) - eps)
+    return max(high - low, 0.0)
+
+
+@njit(cache=True)
+def _gk_theta(a, b, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps):
+    k = 0.0
+    g = 0.0
+    m = 0.0
+    for i in range(15):
+        u, wk, wg = _node(i)
+        t, w = _smooth(a, b, u)
+        f = w * _height(t, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps)
+        k += wk * f
+        g += wg * f
+        m += wk * abs(f)
+    return k, _error(abs(k - g), m)
+
+
+@njit(cache=True)
+def side_area(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, circles, segments, rel):
+    """(the contact area (mm²) of a flat end mill's side at the end of sweep ``S`` between ``z_lo`` and
+    ``z_hi`` mm above the tip, its error estimate), to ``rel`` of the area (module docstring); the
+    earlier sweeps ``C`` as :func:`.contact.slice_arcs` takes them, ``circles`` and ``segments`` their
+    and the CL's boundary curves (:func:`.breaks.boundary_curves`)."""
+    ex, ey, ez = S[4], S[5], S[6]
+    z0, z1 = ez + z_lo, ez + z_hi
+    if z1 <= z0:
+        return 0.0, 0.0
+    ts = ring_breaks(R, ex, ey, stock[0], stock[3], stock[1], stock[4], np.zeros((0, 2)), np.zeros((0, 2)),
+                     circles, segments)
+    vx, vy, _ = end_velocity(S)
+    lim = front_limits(vx, vy, 0.0)
+    for i in range(lim.shape[0]):
+        lim[i] = (lim[i] + math.pi) % (2.0 * math.pi) - math.pi
+    ts = np.sort(np.concatenate((ts, lim)))
+    lo = np.empty(_PANELS)
+    hi = np.empty(_PANELS)
+    val = np.empty(_PANELS)
+    err = np.empty(_PANELS)
+    n = 0
+    for p in range(ts.shape[0] - 1):
+        a, b = ts[p], ts[p + 1]
+        t = 0.5 * (a + b)
+        if b > a and n < _PANELS and math.cos(t) * vx + math.sin(t) * vy >= 0.0:
+            lo[n], hi[n] = a, b
+            val[n], err[n] = _gk_theta(a, b, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps)
+            n += 1
+    while n < _PANELS:
+        k, total, value = _worst(err, val, n)
+        if total <= rel * abs(value) or err[k] == 0.0:
+            break
+        a, b = lo[k], hi[k]
+        if b - a <= MIN_PART:
+            err[k] = 0.0
+            continue
+        m = 0.5 * (a + b)
+        hi[k] = m
+        val[k], err[k] = _gk_theta(a, m, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps)
+        lo[n], hi[n] = m, b
+        val[n], err[n] = _gk_theta(m, b, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps)
+        n += 1
+    return R * val[:n].sum(), R * err[:n].sum()
