@@ -62,7 +62,8 @@ from fusioncut.engines.cl_maps import cl_sequence
 from fusioncut.io.readers import read_toolpath
 from fusioncut.io.stock import infer_stock
 from fusioncut.io.tool_library import read_camotics_project
-from fusioncut.model import BallEndMill, BoxStock, CLStatus, MillingTool, Stock, Toolpath
+from fusioncut.model import (ArcMove, BallEndMill, BoxStock, CLStatus, FlatEndMill, LinearMove, MillingTool, Stock,
+                             Toolpath)
 
 SHARED = Path(os.environ.get("FUSIONCUT_SHARED_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data")
 
@@ -139,9 +140,24 @@ def timed(maps, count: int) -> dict:
 
 
 def warm_kernels() -> None:
-    """Compile (or load from numba's cache) the analytic engine's kernels in this process."""
+    """Compile (or load from numba's cache) the analytic engine's kernels in this process: the first
+    program's first moves, and a flat end mill's level cut, ramp and helix (the closed forms' kernels,
+    :mod:`fusioncut.engines.analytic.flat`, ``.polar``, ``.cylinder``)."""
     toolpath, stock, _ = load(PROGRAMS[0])
     list(AnalyticEngine(EngineOptions()).run(Toolpath(toolpath.moves[:4], toolpath.tools), stock))
+    a, b, c = (-4.0, 0.0, -1.0), (4.0, 0.0, -1.0), (4.0, 3.0, -2.0)
+    flat = [LinearMove((a[0], a[1], 5.0), a, rapid=True, tool=1), LinearMove(a, b, feed=600.0, tool=1),
+            LinearMove(b, c, feed=600.0, tool=1),
+            ArcMove(c, (4.0, -3.0, -3.0), feed=600.0, tool=1, center=(4.0, 0.0, -2.0)),
+            ArcMove((4.0, -3.0, -3.0), (4.0, 3.0, -4.0), feed=600.0, tool=1, center=(4.0, 0.0, -3.0)),
+            LinearMove((4.0, 3.0, -4.0), (4.0, 3.0, 5.0), rapid=True, tool=1),
+            LinearMove((4.0, 3.0, 5.0), (-4.0, 6.0, 5.0), rapid=True, tool=1),
+            LinearMove((-4.0, 6.0, 5.0), (-4.0, 6.0, 0.5), rapid=True, tool=1)]
+    for k in range(3):  # a helix about (-5, 6), half a turn a move
+        p, q = (-4.0 if k % 2 == 0 else -6.0), (-6.0 if k % 2 == 0 else -4.0)
+        flat.append(ArcMove((p, 6.0, 0.5 - k), (q, 6.0, -0.5 - k), feed=600.0, tool=1, center=(-5.0, 6.0, 0.5 - k)))
+    list(AnalyticEngine(EngineOptions()).run(Toolpath(tuple(flat), {1: FlatEndMill(6.0, 20.0)}),
+                                             BoxStock((-10.0, -10.0, -10.0), (10.0, 10.0, 0.0))))
 
 
 def window_conservation(toolpath: Toolpath, stock: Stock, default: MillingTool | None, options: EngineOptions,
