@@ -9,10 +9,9 @@ height at one end of those angles within ``[lo, hi]``: **linear in theta** (or c
 angles where an end of the window meets an end of the arc, ``theta = e +- alpha(r)`` (``e`` an end, or
 an end a turn in: a helix of more than a turn is lowest on its last turn, :mod:`.sweeps`); the removed
 height bends where that surface crosses the stock's top or bottom or a level sweep's height, which is
-where the window's end meets the path angle ``e`` at that height: those are ends too
-(:func:`_axial`). A level
-sweep, a plunge and a round bar's outside have one constant lower surface over their footprint, which
-the circle of radius ``r`` enters and leaves where it crosses their boundary curves
+where the window's end meets the path angle ``e`` at that height: those are ends too (:func:`_axial`).
+A level sweep, a plunge and a round bar's outside have one constant lower surface over their footprint,
+which the circle of radius ``r`` enters and leaves where it crosses their boundary curves
 (:func:`.breaks.boundary_curves`). So along that circle, between the angles where any of that
 happens or the circle crosses a cell's edge (:func:`ring_breaks`), every lower surface is linear in
 ``theta``, and the removed height ``max(0, min(h, z_top) - max(L, z_bottom))`` (:mod:`.volume`) is
@@ -30,7 +29,8 @@ circle changes (:func:`polar_volume`): where it touches a curve or passes a corn
 meeting of two curves, where ``alpha`` starts or ends (``r = |rho - R|``, ``rho + R``), and where two
 ends' angles ``e_i + alpha`` and ``e_j - alpha`` of arcs with one ``rho`` and ``R`` meet
 (``alpha = (e_j - e_i) / 2``, in closed form). Where arcs with other radii meet so, the bend is left to
-the rule's error estimate, as :mod:`.volume` leaves a kink between its probes to its own.
+the rule's error estimate, as :mod:`.volume` leaves a kink between its probes to its own. The radii an
+earlier helix of a turn or more holds below the CL's lowest tip are skipped (:func:`_held`).
 """
 from __future__ import annotations
 
