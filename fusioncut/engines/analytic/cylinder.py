@@ -41,7 +41,7 @@ from numba import njit
 from fusioncut.engines.analytic.contact import front_limits
 from fusioncut.engines.analytic.polar import ring_breaks
 from fusioncut.engines.analytic.sweeps import ARC, end_velocity, sweep_lower
-from fusioncut.engines.analytic.volume import _PANELS, MIN_PART, _error, _node, _smooth, _worst
+from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
 
 
 @njit(cache=True)
@@ -112,13 +112,10 @@ def side_area(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, circles, segm
             val[n], err[n] = _gk_theta(a, b, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps)
             n += 1
     while n < _PANELS:
-        k, total, value = _worst(err, val, n)
-        if total <= rel * abs(value) or err[k] == 0.0:
+        k = next_split(lo, hi, val, err, n, 0.0, rel)
+        if k < 0:
             break
         a, b = lo[k], hi[k]
-        if b - a <= MIN_PART:
-            err[k] = 0.0
-            continue
         m = 0.5 * (a + b)
         hi[k] = m
         val[k], err[k] = _gk_theta(a, m, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps)

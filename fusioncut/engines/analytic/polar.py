@@ -41,7 +41,7 @@ from numba import njit
 
 from fusioncut.engines.analytic.breaks import curve_meetings_x, edge_crossings
 from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat, sweep_lower
-from fusioncut.engines.analytic.volume import _PANELS, MIN_PART, _error, _node, _smooth, _worst
+from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
 
 AXIS_TOL = 1e-10  # mm: arcs whose centres are this close share the CL's axis
 NEAR = 1e-6  # mm: a break radius is kept for a point this close to the CL's footprint
@@ -472,13 +472,10 @@ def polar_volume(x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR,
                                    circles, segments, edges, bands[n])
             n += 1
     while n < _PANELS:
-        k, total, value = _worst(err, val, n)
-        if total <= max(budget, rel * abs(value)) or err[k] == 0.0:
+        k = next_split(lo, hi, val, err, n, budget, rel)
+        if k < 0:
             break
         a, b = lo[k], hi[k]
-        if b - a <= MIN_PART:
-            err[k] = 0.0
-            continue
         m = 0.5 * (a + b)
         hi[k] = m
         bands[k] = 0.0

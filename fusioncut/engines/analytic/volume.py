@@ -481,6 +481,22 @@ def _worst(err, val, n):
 
 
 @njit(cache=True)
+def next_split(lo, hi, val, err, n, budget, rel):
+    """The part of the first ``n`` (ends ``lo``, ``hi``; values ``val``, error estimates ``err``) that an
+    adaptive rule with a global budget (QUADPACK's QAG) splits next: the one with the largest estimate,
+    while the estimates add up to more than the looser of ``budget`` and ``rel`` of the values' sum; a
+    part :data:`MIN_PART` wide or less is as fine as it goes and taken as it is (its estimate set to 0).
+    -1 where the rule is done."""
+    while True:
+        k, total, value = _worst(err, val, n)
+        if total <= max(budget, rel * abs(value)) or err[k] == 0.0:
+            return -1
+        if hi[k] - lo[k] > MIN_PART:
+            return k
+        err[k] = 0.0
+
+
+@njit(cache=True)
 def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges):
     """(integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all
     or ``rel`` of itself, whichever is looser;
@@ -505,13 +521,10 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
                                    changes[n])
             n += 1
     while n < _PANELS:
-        k, total, value = _worst(err, val, n)
-        if total <= max(budget, rel * abs(value)) or err[k] == 0.0:
+        k = next_split(lo, hi, val, err, n, budget, rel)
+        if k < 0:
             break
         a, b = lo[k], hi[k]
-        if b - a <= MIN_PART:
-            err[k] = 0.0  # as fine as it goes: taken as it is
-            continue
         # a kink the probes missed (a narrow crescent of removed material between two of them) is
         # split at, found between the nodes that straddle it; else the part is halved
         m = 0.5 * (a + b)
@@ -652,13 +665,10 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
                                    inner, 0.1 * rel, edges, bands[n])
             n += 1
     while n < _PANELS:
-        k, total, value = _worst(err, val, n)
-        if total <= max(budget, 0.9 * rel * abs(value)) or err[k] == 0.0:
+        k = next_split(lo, hi, val, err, n, budget, 0.9 * rel)
+        if k < 0:
             break
         a, b = lo[k], hi[k]
-        if b - a <= MIN_PART:
-            err[k] = 0.0
-            continue
         m = 0.5 * (a + b)
         hi[k] = m
         bands[k] = 0.0

@@ -34,7 +34,7 @@ from numba import njit
 
 from fusioncut.engines.analytic.flat import plane_stretches
 from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat
-from fusioncut.engines.analytic.volume import _PANELS, MIN_PART, _error, _node, _worst, height_and_cause
+from fusioncut.engines.analytic.volume import _PANELS, _error, _node, height_and_cause, next_split
 
 
 @njit(cache=True, inline="always")
@@ -218,13 +218,10 @@ def sliced_volume(x0, x1, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol, re
             val[n], err[n] = _gk_z(lo[n], hi[n], x0, x1, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb, zt)
             n += 1
     while n < _PANELS:
-        k, total, value = _worst(err, val, n)
-        if total <= max(budget, rel * abs(value)) or err[k] == 0.0:
+        k = next_split(lo, hi, val, err, n, budget, rel)
+        if k < 0:
             break
         a, b = lo[k], hi[k]
-        if b - a <= MIN_PART:
-            err[k] = 0.0
-            continue
         m = 0.5 * (a + b)
         hi[k] = m
         val[k], err[k] = _gk_z(a, m, x0, x1, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb, zt)
