@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.contact import front_limits
-from fusioncut.engines.analytic.polar import ring_breaks
+from fusioncut.engines.analytic.polar import _wrap, ring_breaks
 from fusioncut.engines.analytic.sweeps import ARC, end_velocity, sweep_lower
 from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
 
@@ -97,7 +97,7 @@ def side_area(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, circles, segm
     vx, vy, _ = end_velocity(S)
     lim = front_limits(vx, vy, 0.0)
     for i in range(lim.shape[0]):
-        lim[i] = (lim[i] + math.pi) % (2.0 * math.pi) - math.pi
+        lim[i] = _wrap(lim[i])  # as ring_breaks' angles, in [-pi, pi)
     ts = np.sort(np.concatenate((ts, lim)))
     lo = np.empty(_PANELS)
     hi = np.empty(_PANELS)

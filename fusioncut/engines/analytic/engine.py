@@ -394,7 +394,6 @@ class AnalyticEngine:
         near = index.near((whole[0] - WALL_EPS, whole[1] - WALL_EPS, whole[2] + WALL_EPS, whole[3] + WALL_EPS),
                           z_max=self.stock[5])
         C, CB = index.rows[near], index.boxes[near]
-        PP, NPC = self._tools.profiles, self._tools.counts
         t1 = time.perf_counter()
         edges = self._band_edges(row[6], tool)
         removed, band_volumes = self._removed(row, profile, C, CB, cut.box, edges)
@@ -409,9 +408,9 @@ class AnalyticEngine:
         if removed <= VOLUME_EPS:
             outcome = CutOutcome(idle, method=SweepMethod.EXACT, timings=timings)
         else:
-            top, ez, dz = self.stock[5], row[6], self.options.slice_height
-            args, shaping = self._end_args(cut, parts, C, CB)
-            levels = sorted({top, *shaping[:, 3], *shaping[:, 6]})
+            top, dz = self.stock[5], self.options.slice_height
+            args, near = self._end_args(cut, parts, C, CB)
+            levels = sorted({top, *args[3][near, 3], *args[3][near, 6]})
             z_range = contact_range(args, 0.0, tool.flute_length, dz, levels)
             heights = slice_heights(z_range, tool, dz)
             for z, active in heights:
@@ -422,23 +421,21 @@ class AnalyticEngine:
             warnings: list[str] = []
             wider = upper_parts(tool)
             if z_range is not None:
-                breaks = _area_breaks(shaping, PP, NPC, top - ez, ez)
-                flute_area = self._area(args, cut, z_range, breaks)
+                flute_area = self._area(args, near, cut, z_range)
                 # the cutting part taken straight up, as it is swept, up to the first wider part
                 shank = contact_range(args, tool.flute_length, wider[0].height if wider else math.inf, dz, levels) \
                     if z_range[1] >= tool.flute_length else None
                 if shank is not None:
-                    shank_area = self._area(args, cut, shank, breaks)
+                    shank_area = self._area(args, near, cut, shank)
                     warnings += _narrow_neck(tool, profile, shank)
             for i, p in enumerate(parts[1:], 1):
                 # a wider neck or shank touches wherever it meets material, up to the next wider part
-                p_args, p_shaping = self._end_args(p, parts, C, CB)
-                p_levels = sorted({top, *p_shaping[:, 3], *p_shaping[:, 6]})
+                p_args, p_near = self._end_args(p, parts, C, CB)
+                p_levels = sorted({top, *p_args[3][p_near, 3], *p_args[3][p_near, 6]})
                 p_top = wider[i].height - p.height if i < len(wider) else math.inf
                 rng = contact_range(p_args, 0.0, p_top, dz, p_levels)
                 if rng is not None:
-                    p_breaks = _area_breaks(p_shaping, PP, NPC, top - p.row[6], p.row[6])
-                    shank_area += self._area(p_args, p, rng, p_breaks)
+                    shank_area += self._area(p_args, p_near, p, rng)
             timings["area"] = (time.perf_counter() - t3) * 1e3
             outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
                                  method=SweepMethod.EXACT, timings=timings, z_range=z_range,
@@ -451,18 +448,18 @@ class AnalyticEngine:
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))
 
-    def _area(self, args: tuple, part: PartSweep, z_range: tuple[float, float],
-              breaks: list[float]) -> float:
+    def _area(self, args: tuple, near: np.ndarray, part: PartSweep, z_range: tuple[float, float]) -> float:
         """The contact area (mm²) of ``part``'s surface between the heights ``z_range`` (mm above its tip)
-        at the CL's end: a flat end mill's side (or a wider part's) by one integral around it of the
-        engaged heights (:func:`.cylinder.side_area`, the sweeps the end's grid keeps), another tool's by
-        the integral of the engaged span over its height (:func:`.area.contact_area`)."""
+        at the CL's end (``args`` and ``near`` as :meth:`_end_args` gives them): a flat end mill's side (or a
+        wider part's) by one integral around it of the engaged heights (:func:`.cylinder.side_area`),
+        another tool's by the integral of the engaged span over its height (:func:`.area.contact_area`,
+        its parts starting at :func:`_area_breaks`)."""
+        C, CB = args[3][near], args[4][near]
         if is_flat(part.profile.pieces):
-            near = np.unique(args[-1])
-            C, CB = args[3][near], args[4][near]
             circles, segments = self._curves(np.vstack([part.row[None, :], C]), args[5], args[6])
             return float(side_area(part.row, part.profile.pieces, part.profile.radius, *z_range, C, CB, *args[5:10],
                                    circles, segments, SIDE_REL)[0])
+        breaks = _area_breaks(C, args[5], args[6], self.stock[5] - part.row[6], part.row[6])
         return contact_area(lambda z: _width(args, z), part.profile.pieces, *z_range, breaks)[0]
 
     def _curves(self, rows: np.ndarray, P: np.ndarray, NP: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -474,7 +471,7 @@ class AnalyticEngine:
     def _end_args(self, part: PartSweep, parts: list[PartSweep], C: np.ndarray, CB: np.ndarray
                   ) -> tuple[tuple, np.ndarray]:
         """(the arguments of :func:`.contact.slice_arcs` for the slices of ``part`` at the CL's end, the
-        sweeps that can shape the material there). A point there meets only the sweeps that can shape
+        indices among their sweeps of those that can shape the material there). A point there meets only the sweeps that can shape
         the material in its cell of a grid over the part's square (:func:`.contact.sweep_grid`): the
         earlier sweeps and the CL's other parts' sweeps, which hold what those parts took during the
         CL (they hold no point of this part's slices at the end itself: a wider part is higher, a
@@ -489,7 +486,7 @@ class AnalyticEngine:
         grid = sweep_grid(ex - reach, ey - reach, 2 * reach, END_GRID, row, part.profile.pieces, R, Ce, t.profiles,
                           t.counts, t.radii, s[2], s[5], 2 * WALL_EPS)
         args = (row, part.profile.pieces, R, Ce, CBe, t.profiles, t.counts, t.radii, np.array(s), WALL_EPS, *grid)
-        return args, Ce[np.unique(grid[2])]
+        return args, np.unique(grid[2])
 
     def _band_edges(self, ez: float, tool: MillingTool) -> np.ndarray:
         """Machine heights (mm) of the slice bands' edges from the tip at ``ez`` up to the flutes' or

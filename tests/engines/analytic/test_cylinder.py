@@ -131,8 +131,8 @@ def test_the_side_area_as_the_slices_test_finds_it(monkeypatch, seed, decimals):
     calls = []
     area = analytic.AnalyticEngine._area
     monkeypatch.setattr(analytic.AnalyticEngine, "_area",
-                        lambda self, args, part, z_range, breaks: calls.append((args, part, z_range))
-                        or area(self, args, part, z_range, breaks))
+                        lambda self, args, near, part, z_range: calls.append((args, near, part, z_range))
+                        or area(self, args, near, part, z_range))
     tools = {1: FlatEndMill(6, 3, shank_diameter=8, shoulder_length=4)}
     _, maps = run(_program(seed, decimals), tools, BoxStock((-20, -15, -6), (20, 15, 0)), slice_height=1.0)
     assert sum(m.contact_area for m in maps) > 50
@@ -140,9 +140,8 @@ def test_the_side_area_as_the_slices_test_finds_it(monkeypatch, seed, decimals):
     engine = analytic.AnalyticEngine()
     engine.stock = (-20, -15, -6, 20, 15, 0)
     checked = 0
-    for args, part, (z_lo, z_hi) in calls[::7]:
+    for args, near, part, (z_lo, z_hi) in calls[::7]:
         S, P, R = part.row, part.profile.pieces, part.profile.radius
-        near = np.unique(args[-1])
         C, CB = args[3][near], args[4][near]
         circles, segments = engine._curves(np.vstack([S[None, :], C]), args[5], args[6])
         got = side_area(S, P, R, z_lo, z_hi, C, CB, *args[5:10], circles, segments, 1e-9)[0]
