@@ -94,6 +94,8 @@ TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
 CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps is quartered (.cells),
 # as is one with a quarter where nothing can be removed
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
+POLAR_SWEEPS = CELL_SWEEPS  # a cell whose sweeps are all on the CL's axis or level is integrated in polar coordinates
+# (.polar) where it has at most this many, not quartered: its empty radii cost nothing there (polar._held)
 FLAT_SWEEPS = 2 * CELL_SWEEPS  # a cell whose sweeps are all level and flat is integrated in closed form (.flat)
 # whole up to this many: its integral costs less than quartering it would
 SIDE_REL = 1e-9  # a flat end mill's side contact area's tolerance, relative (.cylinder)
@@ -563,7 +565,9 @@ class AnalyticEngine:
                 continue
             Ck, CBk = Cm[keep], CBm[keep]
             flat = all_level_flat(row, profile.pieces, Ck, P, NP)
-            if cx1 - cx0 > MIN_CELL_RADII * scale and not (flat and keep.sum() <= FLAT_SWEEPS):
+            polar = not flat and polar_applies(row, profile.pieces, Ck, P, NP)
+            if cx1 - cx0 > MIN_CELL_RADII * scale and not (flat and keep.sum() <= FLAT_SWEEPS) \
+                    and not (polar and keep.sum() <= POLAR_SWEEPS):
                 # quartered where many sweeps are left, or where a quarter is proven empty (its area
                 # then costs nothing), unless its closed form costs less (FLAT_SWEEPS); a quarter needs only
                 # its cell's sweeps: one left out there can give h nowhere in the cell (its floor over the
@@ -585,7 +589,7 @@ class AnalyticEngine:
                 total += v
                 bands += vb
             else:
-                adaptive.append((cx0, cy0, cx1, cy1, Ct, CBt, circles, segments))
+                adaptive.append((cx0, cy0, cx1, cy1, Ct, CBt, circles, segments, polar))
         if adaptive:
             # the CL's relative budget shared by area, the cells likely to hold the most volume first: each
             # stops at the loosest of volume_tol per mm² of it, volume_rel of its own volume and volume_rel of
@@ -596,9 +600,9 @@ class AnalyticEngine:
             rough = [rough_volume(c[0], c[2], c[1], c[3], row, profile.pieces, profile.radius, c[4], c[5], P, NP, RR,
                                   s[2], s[5]) for c in adaptive]
             for k in np.argsort(rough, kind="stable")[::-1]:
-                cx0, cy0, cx1, cy1, Ct, CBt, circles, segments = adaptive[k]
+                cx0, cy0, cx1, cy1, Ct, CBt, circles, segments, polar = adaptive[k]
                 tol = max(self.volume_tol, self.volume_rel * total / area)
-                if polar_applies(row, profile.pieces, Ct, P, NP):
+                if polar:
                     v, vb = polar_volume(cx0, cx1, cy0, cy1, circles, segments, row, profile.pieces, profile.radius,
                                          Ct, CBt, P, NP, RR, s[2], s[5], tol, self.volume_rel, edges)
                 else:
