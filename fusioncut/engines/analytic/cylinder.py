@@ -38,33 +38,42 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.contact import front_limits
+from fusioncut.engines.analytic.contact import _GOLDEN, front_limits
 from fusioncut.engines.analytic.polar import _wrap, ring_breaks
 from fusioncut.engines.analytic.sweeps import ARC, end_velocity, sweep_lower
 from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
 
 
 @njit(cache=True)
-def _height(theta, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps):
-    """The engaged height (mm) of the side at machine angle ``theta`` between the machine heights z0 and
-    z1 (module docstring), the front's test left to the caller."""
+def _high(theta, S, P, R, low, z1, C, CB, PP, NPC, RR, stock, eps):
+    """The top (mm, machine) of the side's engaged heights at machine angle ``theta`` below ``z1``: the least
+    of ``z1``, the stock's top, ``m(q)`` and ``H(q)`` (module docstring), -inf where ``q`` is not strictly inside
+    the stock's box; once it is at most ``low``, a value at most ``low`` (nothing is engaged there). The front's
+    test is left to the caller."""
     qx, qy = S[4] + R * math.cos(theta), S[5] + R * math.sin(theta)
     if not (stock[0] < qx < stock[3] and stock[1] < qy < stock[4]):
-        return 0.0
-    low = max(z0, stock[2])
+        return -math.inf
     high = min(z1, stock[5])
     if S[0] == ARC:
         high = min(high, sweep_lower(S, P, R, qx, qy, -eps))
     for j in range(C.shape[0]):
         if high <= low:
-            return 0.0
+            return high
         if qx < CB[j, 0] - eps or qx > CB[j, 2] + eps or qy < CB[j, 1] - eps or qy > CB[j, 3] + eps:
             continue
         if C[j, 3] - eps >= high and C[j, 6] - eps >= high:
             continue  # its lower surface is nowhere below its path's lowest tip
         k = int(C[j, 12])
         high = min(high, sweep_lower(C[j], PP[k, :NPC[k]], RR[k], qx, qy, eps) - eps)
-    return max(high - low, 0.0)
+    return high
+
+
+@njit(cache=True, inline="always")
+def _height(theta, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps):
+    """The engaged height (mm) of the side at machine angle ``theta`` between the machine heights z0 and
+    z1 (module docstring), the front's test left to the caller."""
+    low = max(z0, stock[2])
+    return max(_high(theta, S, P, R, low, z1, C, CB, PP, NPC, RR, stock, eps) - low, 0.0)
 
 
 @njit(cache=True)
@@ -123,3 +132,68 @@ def side_area(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, circles, segm
         val[n], err[n] = _gk_theta(m, b, S, P, R, z0, z1, C, CB, PP, NPC, RR, stock, eps)
         n += 1
     return R * val[:n].sum(), R * err[:n].sum()
+
+
+@njit(cache=True)
+def side_range(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, n_scan):
+    """(lo, hi): the heights (mm above the tip) between ``z_lo`` and ``z_hi`` where a flat end mill's side at
+    the end of sweep ``S`` touches material, or (nan, nan) where it touches none; the sweeps as
+    :func:`side_area` takes them.
+
+    At an angle ahead, the engaged heights are one interval from ``low`` (the greater of ``z_lo`` and the
+    stock's bottom, the same at every angle) to :func:`_high` (module docstring), so the engaged arcs shrink
+    as the height grows: the contact starts at ``low`` wherever any angle is engaged and ends at the greatest
+    ``_high`` over the angles ahead. That is sampled at ``n_scan`` angles a turn, and each local maximum
+    among the engaged samples (where none is, among all: a last touch between two samples) refined by golden
+    section to ~1e-12 rad, as :func:`.contact.slice_margin` refines the material margin."""
+    ex, ey, ez = S[4], S[5], S[6]
+    low = max(ez + z_lo, stock[2])
+    cap = min(ez + z_hi, stock[5])
+    if cap <= low:
+        return math.nan, math.nan
+    vx, vy, _ = end_velocity(S)
+    lim = front_limits(vx, vy, 0.0)
+    if lim.shape[0] == 2:
+        t0 = lim[0]
+        t1 = lim[1] if lim[1] > lim[0] else lim[1] + 2.0 * math.pi
+    else:
+        t0, t1 = 0.0, 2.0 * math.pi  # a plunge: ahead all round
+    n = max(8, int(math.ceil((t1 - t0) / (2.0 * math.pi) * n_scan)))
+    ts = np.empty(n + 1)
+    hs = np.empty(n + 1)
+    floor = low  # _high's values stop at low: enough where a sample is engaged
+    for attempt in range(2):
+        best = -math.inf
+        for i in range(n + 1):
+            ts[i] = t0 + (t1 - t0) * i / n
+            hs[i] = _high(ts[i], S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
+            best = max(best, hs[i])
+        if best > low:
+            break
+        floor = -math.inf  # none is: the whole values, whose maxima lead to an engaged sliver between samples
+    if best >= cap:
+        return low - ez, cap - ez
+    for i in range(n + 1):
+        if (i > 0 and hs[i] < hs[i - 1]) or (i < n and hs[i] < hs[i + 1]):
+            continue
+        if (i > 0 and hs[i] == hs[i - 1]) and (i == n or hs[i] == hs[i + 1]):
+            continue  # inside a plateau: its ends are refined
+        if hs[i] == -math.inf or hs[i] <= floor:
+            continue
+        a, b = ts[max(i - 1, 0)], ts[min(i + 1, n)]
+        c, d = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
+        fc = _high(c, S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
+        fd = _high(d, S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
+        for _ in range(48):
+            if fc >= fd:
+                b, d, fd = d, c, fc
+                c = b - _GOLDEN * (b - a)
+                fc = _high(c, S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
+            else:
+                a, c, fc = c, d, fd
+                d = a + _GOLDEN * (b - a)
+                fd = _high(d, S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
+        best = max(best, fc, fd)
+    if best <= low:
+        return math.nan, math.nan
+    return low - ez, best - ez

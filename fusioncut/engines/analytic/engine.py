@@ -27,7 +27,8 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
 * the flute contact's height range (``ap``): the lowest and highest touching heights among the
   quarter slices and the heights of the stock's top and the earlier sweeps' ends (walking up from
   the bottom and down from the stock's top), each found to 1e-10 mm against its neighbour
-  (:func:`.contact.contact_range`);
+  (:func:`.contact.contact_range`); on a flat end mill's side, from its lowest engaged height to the
+  highest top of the engaged heights around it (:func:`.cylinder.side_range`);
 * a slice band **rubs** (:mod:`fusioncut.engines.chip`) by the volume removed within its heights:
   the removed volume's integral split by the bands' edges on the same nodes;
 * the **contact areas** integrate the engaged arcs' span over the tool's surface (:mod:`.area`; a flat
@@ -70,12 +71,12 @@ import numpy as np
 from fusioncut.engines.analytic.area import Shape, contact_area
 from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below, relevant_sweeps
-from fusioncut.engines.analytic.contact import N_SCAN, contact_range, slice_arcs, sweep_grid
-from fusioncut.engines.analytic.cylinder import side_area
+from fusioncut.engines.analytic.contact import N_SCAN, N_TOUCH, contact_range, slice_arcs, sweep_grid
+from fusioncut.engines.analytic.cylinder import side_area, side_range
 from fusioncut.engines.analytic.flat import all_level_flat, flat_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
-from fusioncut.engines.analytic.polar import polar_applies, polar_volume
+from fusioncut.engines.analytic.polar import held_annuli, polar_applies, polar_volume
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                 profile_radius, profile_radius_slope, rim_radius, upper_parts)
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row
@@ -94,10 +95,11 @@ TILE_RADII = 4.0  # the volume's tiles are at most this many tool radii wide
 CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps is quartered (.cells),
 # as is one with a quarter where nothing can be removed
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
-POLAR_SWEEPS = CELL_SWEEPS  # a cell whose sweeps are all on the CL's axis or level is integrated in polar coordinates
-# (.polar) where it has at most this many, not quartered: its empty radii cost nothing there (polar._held)
-FLAT_SWEEPS = 2 * CELL_SWEEPS  # a cell whose sweeps are all level and flat is integrated in closed form (.flat)
-# whole up to this many: its integral costs less than quartering it would
+POLAR_SWEEPS = CELL_SWEEPS  # a cell whose sweeps are all on the CL's axis or level (.polar) and which an earlier
+# helix holds in part (polar.held_annuli) is not quartered up to this many: its held radii cost nothing there
+FLAT_SWEEPS = 8  # a cell whose sweeps are all level and flat is integrated in closed form (.flat) whole up to
+# this many, not quartered where a quarter is empty; with more, its quarters cost less (the closed form's parts
+# between curve meetings grow as the square of the curves, and each part's regions with them)
 SIDE_REL = 1e-9  # a flat end mill's side contact area's tolerance, relative (.cylinder)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 log = logging.getLogger("fusioncut.analytic")
@@ -413,7 +415,7 @@ class AnalyticEngine:
             top, dz = self.stock[5], self.options.slice_height
             args, near = self._end_args(cut, parts, C, CB)
             levels = sorted({top, *args[3][near, 3], *args[3][near, 6]})
-            z_range = contact_range(args, 0.0, tool.flute_length, dz, levels)
+            z_range = self._range(args, near, cut, 0.0, tool.flute_length, levels)
             heights = slice_heights(z_range, tool, dz)
             for z, active in heights:
                 arcs.append(_arcs_at(args, z) if active else [])
@@ -425,7 +427,7 @@ class AnalyticEngine:
             if z_range is not None:
                 flute_area = self._area(args, near, cut, z_range)
                 # the cutting part taken straight up, as it is swept, up to the first wider part
-                shank = contact_range(args, tool.flute_length, wider[0].height if wider else math.inf, dz, levels) \
+                shank = self._range(args, near, cut, tool.flute_length, wider[0].height if wider else math.inf, levels) \
                     if z_range[1] >= tool.flute_length else None
                 if shank is not None:
                     shank_area = self._area(args, near, cut, shank)
@@ -435,7 +437,7 @@ class AnalyticEngine:
                 p_args, p_near = self._end_args(p, parts, C, CB)
                 p_levels = sorted({top, *p_args[3][p_near, 3], *p_args[3][p_near, 6]})
                 p_top = wider[i].height - p.height if i < len(wider) else math.inf
-                rng = contact_range(p_args, 0.0, p_top, dz, p_levels)
+                rng = self._range(p_args, p_near, p, 0.0, p_top, p_levels)
                 if rng is not None:
                     shank_area += self._area(p_args, p_near, p, rng)
             timings["area"] = (time.perf_counter() - t3) * 1e3
@@ -449,6 +451,18 @@ class AnalyticEngine:
         self.removed_total += removed
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return replace(m, timings_ms=tuple(timings.items()))
+
+    def _range(self, args: tuple, near: np.ndarray, part: PartSweep, bottom: float, top: float, levels: list[float]
+               ) -> tuple[float, float] | None:
+        """The heights (mm above ``part``'s tip) between ``bottom`` and ``top`` where it touches material at the
+        CL's end, or None (``args`` and ``near`` as :meth:`_end_args` gives them, ``levels`` the machine heights
+        where the contact may start or end): a flat end mill's side (or a wider part's) from the engaged heights
+        around it (:func:`.cylinder.side_range`), another tool's by its slices (:func:`.contact.contact_range`)."""
+        if is_flat(part.profile.pieces):
+            lo, hi = side_range(part.row, part.profile.pieces, part.profile.radius, bottom, top, args[3][near],
+                                args[4][near], *args[5:10], N_TOUCH)
+            return None if math.isnan(lo) else (float(lo), float(hi))
+        return contact_range(args, bottom, top, self.options.slice_height, levels)
 
     def _area(self, args: tuple, near: np.ndarray, part: PartSweep, z_range: tuple[float, float]) -> float:
         """The contact area (mm²) of ``part``'s surface between the heights ``z_range`` (mm above its tip)
@@ -566,8 +580,8 @@ class AnalyticEngine:
             Ck, CBk = Cm[keep], CBm[keep]
             flat = all_level_flat(row, profile.pieces, Ck, P, NP)
             polar = not flat and polar_applies(row, profile.pieces, Ck, P, NP)
-            if cx1 - cx0 > MIN_CELL_RADII * scale and not (flat and keep.sum() <= FLAT_SWEEPS) \
-                    and not (polar and keep.sum() <= POLAR_SWEEPS):
+            if cx1 - cx0 > MIN_CELL_RADII * scale and not (flat and keep.sum() <= FLAT_SWEEPS) and not (
+                    polar and keep.sum() <= POLAR_SWEEPS and len(held_annuli(row, profile.pieces, Ck, P, NP, RR))):
                 # quartered where many sweeps are left, or where a quarter is proven empty (its area
                 # then costs nothing), unless its closed form costs less (FLAT_SWEEPS); a quarter needs only
                 # its cell's sweeps: one left out there can give h nowhere in the cell (its floor over the

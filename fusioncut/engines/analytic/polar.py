@@ -30,7 +30,7 @@ meeting of two curves, where ``alpha`` starts or ends (``r = |rho - R|``, ``rho 
 ends' angles ``e_i + alpha`` and ``e_j - alpha`` of arcs with one ``rho`` and ``R`` meet
 (``alpha = (e_j - e_i) / 2``, in closed form). Where arcs with other radii meet so, the bend is left to
 the rule's error estimate, as :mod:`.volume` leaves a kink between its probes to its own. The radii an
-earlier helix of a turn or more holds below the CL's lowest tip are skipped (:func:`_held`).
+earlier helix of a turn or more holds below the CL's lowest tip are skipped (:func:`held_annuli`).
 """
 from __future__ import annotations
 
@@ -414,7 +414,7 @@ def _gk_r(a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends
 
 
 @njit(cache=True)
-def _held(S, P, C, PP, NPC, RR):
+def held_annuli(S, P, C, PP, NPC, RR):
     """Rows (r0, r1): annuli about the CL's axis where nothing can be removed, each held by an earlier arc
     on the axis of a turn or more: its tool covers every point of [|rho - R|, rho + R] (rho > R) or
     [0, rho + R] on each turn, so its lower surface there is at most the highest tip of its lowest turn
@@ -464,7 +464,7 @@ def polar_volume(x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR,
     err = np.empty(_PANELS)
     bands = np.zeros((_PANELS, nb))
     n = 0
-    held = _held(S, P, C, PP, NPC, RR)
+    held = held_annuli(S, P, C, PP, NPC, RR)
     for p in range(rs.shape[0] - 1):
         if rs[p + 1] > rs[p] and n < _PANELS and not _within(rs[p], rs[p + 1], held):
             lo[n], hi[n] = rs[p], rs[p + 1]

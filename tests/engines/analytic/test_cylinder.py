@@ -12,7 +12,7 @@ import pytest
 from numba import njit
 
 import fusioncut.engines.analytic.engine as analytic
-from fusioncut.engines.analytic.contact import _engaged, front_limits
+from fusioncut.engines.analytic.contact import _engaged, contact_range, front_limits
 from fusioncut.engines.analytic.cylinder import side_area
 from fusioncut.engines.analytic.polar import ring_breaks
 from fusioncut.engines.analytic.sweeps import end_velocity
@@ -154,6 +154,30 @@ def test_the_side_area_as_the_slices_test_finds_it(monkeypatch, seed, decimals):
         assert got == pytest.approx(expected, rel=1e-9, abs=1e-9)
         checked += got > 0
     assert checked >= 5
+
+
+@pytest.mark.parametrize("seed,decimals", [(1, None), (2, 3), (3, 4)])
+def test_the_side_contact_range_as_the_slices_find_it(monkeypatch, seed, decimals):
+    """The same random programs: the heights where a flat end mill's side touches material, flutes, neck and
+    shank (.cylinder.side_range, from the engaged heights around the tool), against the slices' own search
+    (.contact.contact_range: quarter slices walked up and down, their material margin's sign change found
+    by regula falsi): the same touching parts, their ends to 1e-9 mm."""
+    calls = []
+    found = analytic.AnalyticEngine._range
+    monkeypatch.setattr(analytic.AnalyticEngine, "_range",
+                        lambda self, args, near, part, lo, hi, levels: calls.append(
+                            (args, lo, hi, levels, found(self, args, near, part, lo, hi, levels)))
+                        or calls[-1][-1])
+    tools = {1: FlatEndMill(6, 3, shank_diameter=8, shoulder_length=4)}
+    run(_program(seed, decimals), tools, BoxStock((-20, -15, -6), (20, 15, 0)), slice_height=1.0)
+    touching = 0
+    for args, lo, hi, levels, got in calls:
+        expected = contact_range(args, lo, hi, 1.0, levels)
+        assert (got is None) == (expected is None)
+        if got is not None:
+            assert got == pytest.approx(expected, abs=1e-9)
+            touching += 1
+    assert touching >= 20
 
 
 def test_a_helical_bore_in_solid_touches_its_half_circle_ahead():

@@ -176,23 +176,23 @@ def test_polar_cells_as_horizontal_slices_find_them(monkeypatch):
 
 
 def test_a_turn_of_an_earlier_helix_holds_its_annulus():
-    """polar._held: an earlier helix on the CL's axis holds [max(rho - R, 0), rho + R] where the highest
+    """polar.held_annuli: an earlier helix on the CL's axis holds [max(rho - R, 0), rho + R] where the highest
     tip of its lowest turn is no higher than the CL's lowest tip; less than a turn, a higher turn, or
     another axis hold nothing."""
     import numpy as np
 
-    from fusioncut.engines.analytic.polar import _held
+    from fusioncut.engines.analytic.polar import held_annuli
     from fusioncut.engines.analytic.sweeps import arc_row
 
     P = np.array([[0.0, 0.0, 1.0, 0.0, 0.0, 0.0]])  # a flat end mill's lower profile (f = 0)
     PP, NPC, RR = P[None], np.array([1]), np.array([1.0])
     own = arc_row((2.5, 0, -3.0), (2.5, 0, -3.1), (0, 0), 2.5, 0.0, 0.5, 0)
     down = arc_row((0.5, 0, 0.0), (0.5, 0, -5.0), (0, 0), 0.5, 0.0, 4 * 2 * np.pi, 0)  # 4 turns, 1.25 mm a turn
-    assert _held(own, P, down[None], PP, NPC, RR).tolist() == [[0.0, 1.5]]  # its last turn tops at -3.75
+    assert held_annuli(own, P, down[None], PP, NPC, RR).tolist() == [[0.0, 1.5]]  # its last turn tops at -3.75
     wide = arc_row((2.0, 0, 0.0), (2.0, 0, -5.0), (0, 0), 2.0, 0.0, 4 * 2 * np.pi, 0)
-    assert _held(own, P, wide[None], PP, NPC, RR).tolist() == [[1.0, 3.0]]
+    assert held_annuli(own, P, wide[None], PP, NPC, RR).tolist() == [[1.0, 3.0]]
     shallow = arc_row((0.5, 0, 0.0), (0.5, 0, -4.0), (0, 0), 0.5, 0.0, 4 * 2 * np.pi, 0)  # tops at -3 > -3.1
     part = arc_row((0.5, 0, 0.0), (0.5, 0, -5.0), (0, 0), 0.5, 0.0, 6.0, 0)  # less than a turn
     aside = arc_row((0.5, 1e-6, 0.0), (0.5, 1e-6, -5.0), (0, 1e-6), 0.5, 0.0, 4 * 2 * np.pi, 0)
     for row in (shallow, part, aside):
-        assert _held(own, P, row[None], PP, NPC, RR).shape == (0, 2)
+        assert held_annuli(own, P, row[None], PP, NPC, RR).shape == (0, 2)
