@@ -154,41 +154,42 @@ def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
     return material_blocker(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems) == -1
 
 
-def sweep_grid(x0: float, y0: float, width: float, n: int, S: np.ndarray, P: np.ndarray, R: float, C: np.ndarray,
-               PP: np.ndarray, NPC: np.ndarray, RR: np.ndarray, zb: float, zt: float, eps: float
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@njit(cache=True)
+def sweep_grid(x0, y0, width, n, S, P, R, C, PP, NPC, RR, zb, zt, eps):
     """(G, gstart, gitems): the square (x0, y0) + [0, width]² cut into ``n`` x ``n`` cells, and per
     cell the rows of ``C`` that can give the least lower surface in it (:func:`.cells.relevant_sweeps`,
     footprints widened by ``eps``); a point then meets only its cell's sweeps. Points outside the
-    square take the nearest cell: callers keep them inside."""
-    w = width / n
-    cell_items: list[list[int]] = [[] for _ in range(n * n)]
+    square take the nearest cell: callers keep them inside.
 
-    def split(i0: int, i1: int, j0: int, j1: int, rows: np.ndarray) -> None:
-        """The cells [i0, i1) x [j0, j1) from the sweeps ``rows`` of ``C``: a block's left-out sweeps are
-        left out over each of its cells (.cells.relevant_sweeps), so the block is halved until single cells
-        with only its own, as the volume's quarters are."""
+    A block of cells is halved, the longer side first, down to single cells, each half starting from
+    the sweeps its block kept: one left out of a block can shape the material in none of its cells (as
+    the volume's quarters are), and the halves' tests are cheaper for it."""
+    w = width / n
+    items = [np.empty(0, dtype=np.int64) for _ in range(n * n)]
+    stack = [(0, n, 0, n, np.arange(C.shape[0]))]
+    while len(stack) > 0:
+        i0, i1, j0, j1, rows = stack.pop()
         single = i1 - i0 == 1 and j1 - j0 == 1
         keep = relevant_sweeps(x0 + i0 * w, y0 + j0 * w, x0 + i1 * w, y0 + j1 * w, S, P, R, C[rows], PP, NPC, RR, zb,
                                zt, eps, MANY, math.inf if single else DOMINANCE_MOST)[1]
         rows = rows[keep]
         if single:
-            cell_items[i0 * n + j0] = rows.tolist()
+            items[i0 * n + j0] = rows
         elif i1 - i0 >= j1 - j0:
-            split(i0, (i0 + i1) // 2, j0, j1, rows)
-            split((i0 + i1) // 2, i1, j0, j1, rows)
+            stack.append(((i0 + i1) // 2, i1, j0, j1, rows))
+            stack.append((i0, (i0 + i1) // 2, j0, j1, rows))
         else:
-            split(i0, i1, j0, (j0 + j1) // 2, rows)
-            split(i0, i1, (j0 + j1) // 2, j1, rows)
-
-    split(0, n, 0, n, np.arange(C.shape[0]))
-    starts = [0]
-    items: list[int] = []
-    for cell in cell_items:
-        items.extend(cell)
-        starts.append(len(items))
-    return (np.array([x0, y0, w, n], dtype=np.float64), np.array(starts, dtype=np.int64),
-            np.array(items, dtype=np.int64))
+            stack.append((i0, i1, (j0 + j1) // 2, j1, rows))
+            stack.append((i0, i1, j0, (j0 + j1) // 2, rows))
+    starts = np.zeros(n * n + 1, dtype=np.int64)
+    for c in range(n * n):
+        starts[c + 1] = starts[c] + items[c].shape[0]
+    flat = np.empty(starts[n * n], dtype=np.int64)
+    for c in range(n * n):
+        flat[starts[c]:starts[c + 1]] = items[c]
+    G = np.empty(4)
+    G[0], G[1], G[2], G[3] = x0, y0, w, n
+    return G, starts, flat
 
 
 @njit(cache=True, inline="always")
