@@ -583,7 +583,8 @@ class AnalyticEngine:
             if cx1 - cx0 > MIN_CELL_RADII * scale and not (flat and keep.sum() <= FLAT_SWEEPS) and not (
                     polar and keep.sum() <= POLAR_SWEEPS and len(held_annuli(row, profile.pieces, Ck, P, NP, RR))):
                 # quartered where many sweeps are left, or where a quarter is proven empty (its area
-                # then costs nothing), unless its closed form costs less (FLAT_SWEEPS); a quarter needs only
+                # then costs nothing), unless its closed form costs less (FLAT_SWEEPS) or its polar integral
+                # skips what is empty (POLAR_SWEEPS); a quarter needs only
                 # its cell's sweeps: one left out there can give h nowhere in the cell (its floor over the
                 # cell is at least what h is at most)
                 mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
