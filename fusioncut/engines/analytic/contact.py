@@ -23,8 +23,10 @@ limits, then every change between neighbours is bisected to :data:`ANGLE_TOL` ra
 its angles :data:`BLOCK` at a time: where bounds over the block's arc settle the material test for
 all its points at once (:func:`block_state`: all inside the stock and above every sweep's floor,
 or all below one line sweep's tool at a single position), only the front's test is left per angle;
-the result is the same as angle by angle. Engaged arcs
-narrower than the scan step (0.5 degrees) that hold no front limit can be missed. Where the circle
+the result is the same as angle by angle. The angles where the slice's circle crosses an earlier
+footprint's edge (a wall) are scanned too, just either side, so engaged arcs narrower than the scan step
+(0.5 degrees) can be missed only where both their ends are neither a wall nor a front limit (an arc
+between two lower surfaces that the slice's height crosses twice within the step). Where the circle
 only touches a boundary (tangent to a stock face or an earlier wall), rounding leaves a gap of
 ~1e-8 rad: gaps under :data:`GAP_TOL` are closed, as the B-Rep engine's one contact face has none.
 
@@ -42,6 +44,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, relevant_sweeps
+from fusioncut.engines.analytic.polar import ring_breaks
 from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope
 from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_holds, end_velocity, floor_within, segment_nearest,
                                                sweep_floor, sweep_lower)
@@ -52,6 +55,7 @@ ANGLE_TOL = 1e-10  # rad
 N_TOUCH = 360  # angles per height scanned for the contact's height range (contact_range)
 Z_TOL = 1e-10  # mm: the contact's height range
 MANY = 12  # a grid cell holding more sweeps leaves out the dominated ones (.cells.relevant_sweeps)
+BESIDE = 1e-7  # rad: a wall's crossing of a slice is scanned this far either side (beside_walls)
 GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
 # end_cause's codes beside material_blocker's stock faces (-2..-7) and the earlier sweeps' (>= 0: 2 j, 2 j + 1)
 FRONT_LIMIT = -8
@@ -285,22 +289,49 @@ def front_limits(vx, vy, lift):
 
 
 @njit(cache=True)
-def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems, n_scan):
+def beside_walls(walls, step):
+    """Angles (rad) to scan about the sorted angles ``walls`` where a circle crosses earlier footprints' edges:
+    :data:`BESIDE` either side of each (an arc that a wall ends), and the middle between two closer than the
+    scan's ``step`` (an arc that both end, however narrow: a point within the footprint widened by eps of a
+    wall the circle crosses at a grazing angle is no nearer the arc's middle; a wider one holds a scan angle)."""
+    n = walls.shape[0]
+    out = np.empty(max(3 * n - 1, 0))
+    k = 0
+    for i in range(n):
+        out[k] = walls[i] - BESIDE
+        out[k + 1] = walls[i] + BESIDE
+        k += 2
+        if i + 1 < n and walls[i + 1] - walls[i] < step:
+            out[k] = 0.5 * (walls[i] + walls[i + 1])
+            k += 1
+    return out[:k]
+
+
+@njit(cache=True)
+def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems, n_scan, circles, segments):
     """Engaged machine arcs (start, span) in rad, counter-clockwise, of the slice ``zs`` mm above the
     tip (radius ``r``, ``drho = rho'(zs)``) of the tool at the end of sweep ``S``, with the
     :func:`end_cause` of either end: an (n, 4) array (start, span, start's cause, end's cause); one
-    row (0, 2 pi, ENGAGED, ENGAGED) when engaged all round."""
+    row (0, 2 pi, ENGAGED, ENGAGED) when engaged all round. ``circles`` and ``segments``: the earlier
+    sweeps' footprint boundaries (:func:`.breaks.boundary_curves`), whose crossings with the slice's
+    circle (and the stock's faces') are scanned beside and between (:func:`beside_walls`): an engaged arc
+    narrower than the scan's step that ends at a wall is not missed."""
     ex, ey, ez = S[4], S[5], S[6]
     vx, vy, vz = end_velocity(S)
     lift = 0.0 if vz == 0.0 else drho * vz
     pz = ez + zs
     lim = front_limits(vx, vy, lift)
-    n = n_scan + lim.shape[0]
+    walls = ring_breaks(r, ex, ey, stock[0], stock[3], stock[1], stock[4], np.zeros((0, 2)), np.zeros((0, 2)),
+                        circles, segments)
+    near = beside_walls(walls, TWO_PI / n_scan)
+    n = n_scan + lim.shape[0] + near.shape[0]
     th = np.empty(n)
     for i in range(n_scan):
         th[i] = TWO_PI * i / n_scan
     for i in range(lim.shape[0]):
         th[n_scan + i] = lim[i]
+    for i in range(near.shape[0]):
+        th[n_scan + lim.shape[0] + i] = near[i] % TWO_PI
     th = np.sort(th)
     on = np.empty(n, dtype=np.bool_)
     for i in range(n):
@@ -510,7 +541,8 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
         if zs not in seen:
             r = profile_radius(pieces, zs)
             seen[zs] = -math.inf if r <= 0 else float(
-                slice_margin(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:], N_TOUCH))
+                slice_margin(row, pieces, args[2], zs, r, profile_radius_slope(pieces, zs), *args[3:13],
+                             N_TOUCH))
         return seen[zs]
 
     def touches(zs: float) -> bool:

@@ -38,7 +38,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.contact import _GOLDEN, front_limits
+from fusioncut.engines.analytic.contact import _GOLDEN, beside_walls, front_limits
 from fusioncut.engines.analytic.polar import _wrap, ring_breaks
 from fusioncut.engines.analytic.sweeps import ARC, end_velocity, sweep_lower
 from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
@@ -135,7 +135,7 @@ def side_area(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, circles, segm
 
 
 @njit(cache=True)
-def side_range(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, n_scan):
+def side_range(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, n_scan, circles, segments):
     """(lo, hi): the heights (mm above the tip) between ``z_lo`` and ``z_hi`` where a flat end mill's side at
     the end of sweep ``S`` touches material, or (nan, nan) where it touches none; the sweeps as
     :func:`side_area` takes them.
@@ -143,9 +143,11 @@ def side_range(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, n_scan):
     At an angle ahead, the engaged heights are one interval from ``low`` (the greater of ``z_lo`` and the
     stock's bottom, the same at every angle) to :func:`_high` (module docstring), so the engaged arcs shrink
     as the height grows: the contact starts at ``low`` wherever any angle is engaged and ends at the greatest
-    ``_high`` over the angles ahead. That is sampled at ``n_scan`` angles a turn, and each local maximum
-    among the engaged samples (where none is, among all: a last touch between two samples) refined by golden
-    section to ~1e-12 rad, as :func:`.contact.slice_margin` refines the material margin."""
+    ``_high`` over the angles ahead. That is sampled at ``n_scan`` angles a turn and beside and between the
+    circle's crossings with the earlier footprints' edges ``circles`` and ``segments`` (walls, as
+    :func:`.contact.slice_arcs` scans them), and each local maximum among the engaged samples (where none is,
+    among all: a last touch between two samples) refined by golden section to ~1e-12 rad, as
+    :func:`.contact.slice_margin` refines the material margin."""
     ex, ey, ez = S[4], S[5], S[6]
     low = max(ez + z_lo, stock[2])
     cap = min(ez + z_hi, stock[5])
@@ -158,14 +160,25 @@ def side_range(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, n_scan):
         t1 = lim[1] if lim[1] > lim[0] else lim[1] + 2.0 * math.pi
     else:
         t0, t1 = 0.0, 2.0 * math.pi  # a plunge: ahead all round
-    n = max(8, int(math.ceil((t1 - t0) / (2.0 * math.pi) * n_scan)))
-    ts = np.empty(n + 1)
+    m = max(8, int(math.ceil((t1 - t0) / (2.0 * math.pi) * n_scan)))
+    walls = ring_breaks(R, ex, ey, stock[0], stock[3], stock[1], stock[4], np.zeros((0, 2)), np.zeros((0, 2)),
+                        circles, segments)
+    near = beside_walls(walls, (t1 - t0) / m)
+    ts = np.empty(m + 1 + near.shape[0])
+    for i in range(m + 1):
+        ts[i] = t0 + (t1 - t0) * i / m
+    n = m
+    for t in near:
+        t = t0 + (t - t0) % (2.0 * math.pi)
+        if t < t1:
+            n += 1
+            ts[n] = t
+    ts = np.sort(ts[:n + 1])
     hs = np.empty(n + 1)
     floor = low  # _high's values stop at low: enough where a sample is engaged
     for attempt in range(2):
         best = -math.inf
         for i in range(n + 1):
-            ts[i] = t0 + (t1 - t0) * i / n
             hs[i] = _high(ts[i], S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
             best = max(best, hs[i])
         if best > low:

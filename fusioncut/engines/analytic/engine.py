@@ -460,7 +460,7 @@ class AnalyticEngine:
         around it (:func:`.cylinder.side_range`), another tool's by its slices (:func:`.contact.contact_range`)."""
         if is_flat(part.profile.pieces):
             lo, hi = side_range(part.row, part.profile.pieces, part.profile.radius, bottom, top, args[3][near],
-                                args[4][near], *args[5:10], N_TOUCH)
+                                args[4][near], *args[5:10], N_TOUCH, *args[13:])
             return None if math.isnan(lo) else (float(lo), float(hi))
         return contact_range(args, bottom, top, self.options.slice_height, levels)
 
@@ -486,8 +486,9 @@ class AnalyticEngine:
 
     def _end_args(self, part: PartSweep, parts: list[PartSweep], C: np.ndarray, CB: np.ndarray
                   ) -> tuple[tuple, np.ndarray]:
-        """(the arguments of :func:`.contact.slice_arcs` for the slices of ``part`` at the CL's end, the
-        indices among their sweeps of those that can shape the material there). A point there meets only the sweeps that can shape
+        """(the arguments of :func:`.contact.slice_arcs` for the slices of ``part`` at the CL's end (less the
+        height, radius, slope and scan count), the indices among their sweeps of those that can shape the
+        material there). A point there meets only the sweeps that can shape
         the material in its cell of a grid over the part's square (:func:`.contact.sweep_grid`): the
         earlier sweeps and the CL's other parts' sweeps, which hold what those parts took during the
         CL (they hold no point of this part's slices at the end itself: a wider part is higher, a
@@ -501,8 +502,11 @@ class AnalyticEngine:
         t = self._tools
         grid = sweep_grid(ex - reach, ey - reach, 2 * reach, END_GRID, row, part.profile.pieces, R, Ce, t.profiles,
                           t.counts, t.radii, s[2], s[5], 2 * WALL_EPS)
-        args = (row, part.profile.pieces, R, Ce, CBe, t.profiles, t.counts, t.radii, np.array(s), WALL_EPS, *grid)
-        return args, np.unique(grid[2])
+        near = np.unique(grid[2])
+        # the footprints' edges (walls): the boundary curves at each sweep's tool radius
+        walls = boundary_curves(Ce[near], [(t.radii[int(r[12])],) for r in Ce[near]])
+        args = (row, part.profile.pieces, R, Ce, CBe, t.profiles, t.counts, t.radii, np.array(s), WALL_EPS, *grid, *walls)
+        return args, near
 
     def _band_edges(self, ez: float, tool: MillingTool) -> np.ndarray:
         """Machine heights (mm) of the slice bands' edges from the tip at ``ez`` up to the flutes' or
@@ -661,7 +665,7 @@ def _found(args: tuple, z: float) -> np.ndarray:
     :func:`.contact.contact_range` takes them): rows (start, span, start's cause, end's cause)."""
     pieces = args[1]
     return slice_arcs(args[0], pieces, args[2], z, profile_radius(pieces, z), profile_radius_slope(pieces, z),
-                      *args[3:], N_SCAN)
+                      *args[3:13], N_SCAN, *args[13:])
 
 
 def _arcs_at(args: tuple, z: float) -> list[tuple[float, float]]:

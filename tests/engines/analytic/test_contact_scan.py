@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from fusioncut.engines.analytic.contact import block_state, material_at, sweep_grid
 from fusioncut.engines.analytic.profile import lower_profile
@@ -59,3 +60,30 @@ def test_a_block_certified_all_material_or_none_is_so_at_every_point():
                   for t in np.linspace(t0, t1, 256)]
         assert all(inside) if state == 1 else not any(inside), (x, y, r, pz, t0, state)
     assert min(seen.values()) > 200, seen
+
+
+def test_an_arc_narrower_than_the_scan_step_between_two_walls_is_found():
+    """A flat end mill (R = 3) ends a level move 1e-5 mm past the axis of an earlier slot of its width, its
+    path turned 0.25 degrees off the slot's normal: its circle reaches beyond the slot's far wall over
+    2 acos(1 - (1e-5 - eps) / 3) = 0.296 degrees about the path's direction, between two of the scan's even angles
+    (every 0.5 degrees), and both ends of that arc are the wall. Every slice has that one arc, to 1e-6 degrees."""
+    from fusioncut.engines.analytic.engine import WALL_EPS
+    from fusioncut.model import BoxStock, LinearMove
+    from tests.engines.analytic.test_engine import feed, rot, run
+
+    turn, past = 0.25, 1e-5
+    moves = [LinearMove(rot((0.0, -12.0, 5.0), turn), rot((0.0, -12.0, -2.0), turn), tool=1),
+             feed(rot((0.0, -12.0, -2.0), turn), rot((0.0, 12.0, -2.0), turn)),
+             LinearMove(rot((0.0, 12.0, -2.0), turn), rot((0.0, 12.0, 5.0), turn), rapid=True, tool=1),
+             LinearMove(rot((0.0, 12.0, 5.0), turn), rot((past - 2.0, 0.0, 5.0), turn), rapid=True, tool=1),
+             LinearMove(rot((past - 2.0, 0.0, 5.0), turn), rot((past - 2.0, 0.0, -2.0), turn), tool=1),
+             feed(rot((past - 2.0, 0.0, -2.0), turn), rot((past, 0.0, -2.0), turn))]
+    _, maps = run(moves, {1: FlatEndMill(6.0, 12.0)}, BoxStock((-20, -20, -6), (20, 20, 0)), slice_height=1.0,
+                  min_chip_thickness=0.0)  # the arc's chip is thinner than any: kept to be seen
+    last = maps[-1]
+    width = 2 * math.degrees(math.acos(1 - (past - WALL_EPS) / 3.0))  # the slot's footprint widened by eps
+    assert last.removed_volume > 0
+    assert len(last.slices) == 2
+    for s in last.slices:
+        assert len(s.intervals) == 1
+        assert s.intervals[0].exit - s.intervals[0].entry == pytest.approx(width, abs=1e-6)

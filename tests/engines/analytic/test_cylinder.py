@@ -150,7 +150,7 @@ def test_the_side_area_as_the_slices_test_finds_it(monkeypatch, seed, decimals):
                          circles, segments)
         vx, vy, _ = end_velocity(S)
         lim = (front_limits(vx, vy, 0.0) + math.pi) % (2 * math.pi) - math.pi
-        expected = _oracle(np.sort(np.concatenate((ts, lim))), S, P, R, S[6] + z_lo, S[6] + z_hi, *args[3:])
+        expected = _oracle(np.sort(np.concatenate((ts, lim))), S, P, R, S[6] + z_lo, S[6] + z_hi, *args[3:13])
         assert got == pytest.approx(expected, rel=1e-9, abs=1e-9)
         checked += got > 0
     assert checked >= 5
