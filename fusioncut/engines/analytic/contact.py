@@ -323,15 +323,15 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
     lim = front_limits(vx, vy, lift)
     walls = ring_breaks(r, ex, ey, stock[0], stock[3], stock[1], stock[4], np.zeros((0, 2)), np.zeros((0, 2)),
                         circles, segments)
-    near = beside_walls(walls, TWO_PI / n_scan)
-    n = n_scan + lim.shape[0] + near.shape[0]
+    beside = beside_walls(walls, TWO_PI / n_scan)
+    n = n_scan + lim.shape[0] + beside.shape[0]
     th = np.empty(n)
     for i in range(n_scan):
         th[i] = TWO_PI * i / n_scan
     for i in range(lim.shape[0]):
         th[n_scan + i] = lim[i]
-    for i in range(near.shape[0]):
-        th[n_scan + lim.shape[0] + i] = near[i] % TWO_PI
+    for i in range(beside.shape[0]):
+        th[n_scan + lim.shape[0] + i] = beside[i] % TWO_PI
     th = np.sort(th)
     on = np.empty(n, dtype=np.bool_)
     for i in range(n):
@@ -520,7 +520,7 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
                   ) -> tuple[float, float] | None:
     """The height range (mm above the tip) between ``bottom`` and ``top`` where the tool at the end
     of ``args``' sweep touches material (``args`` as :func:`.contact.slice_arcs` takes them, less the
-    height, radius and slope), or None: the flutes' contact with ``(0, flute length)``, the shank's
+    height, radius, slope and scan count: its first 13), or None: the flutes' contact with ``(0, flute length)``, the shank's
     with ``(flute length, inf)``.
 
     The candidate heights are every quarter of ``dz`` and just above and below each machine height

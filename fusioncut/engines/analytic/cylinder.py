@@ -163,12 +163,12 @@ def side_range(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, n_scan, circ
     m = max(8, int(math.ceil((t1 - t0) / (2.0 * math.pi) * n_scan)))
     walls = ring_breaks(R, ex, ey, stock[0], stock[3], stock[1], stock[4], np.zeros((0, 2)), np.zeros((0, 2)),
                         circles, segments)
-    near = beside_walls(walls, (t1 - t0) / m)
-    ts = np.empty(m + 1 + near.shape[0])
+    beside = beside_walls(walls, (t1 - t0) / m)
+    ts = np.empty(m + 1 + beside.shape[0])
     for i in range(m + 1):
         ts[i] = t0 + (t1 - t0) * i / m
     n = m
-    for t in near:
+    for t in beside:
         t = t0 + (t - t0) % (2.0 * math.pi)
         if t < t1:
             n += 1
