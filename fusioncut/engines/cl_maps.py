@@ -82,13 +82,13 @@ class CutOutcome:
 
 
 def cl_sequence(toolpath: Toolpath, options: EngineOptions, default_tool: MillingTool | None = None,
-                start_at: int = 0, exact_helices: bool = False) -> Iterator[CL]:
+                start_at: int = 0, exact_arcs: bool = False) -> Iterator[CL]:
     """Every CL segment of ``toolpath`` from ``start_at`` on; the CLs before it only carry the feed
     direction forward. A move without a tool of its own takes ``default_tool``; a move with neither
-    is an :class:`~fusioncut.errors.InputError` naming its source line. ``exact_helices``: as
+    is an :class:`~fusioncut.errors.InputError` naming its source line. ``exact_arcs``: as
     :func:`~fusioncut.engines.segments.cl_segments` takes it."""
     feed_angle = 0.0
-    for index, move in enumerate(segments_for(toolpath.moves, options, exact_helices)):
+    for index, move in enumerate(segments_for(toolpath.moves, options, exact_arcs)):
         d = horizontal_direction(move)
         if d is not None:
             feed_angle = math.degrees(math.atan2(d[1], d[0])) % 360.0

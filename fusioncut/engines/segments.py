@@ -5,9 +5,10 @@ which lies on the programmed path (on a chord, within ``chord_tolerance``, for t
 
 * Horizontal lines, XY arcs and vertical plunges are swept exactly.
 * Arcs in the ZX / YZ planes, and helices steeper than ``STAIRCASE_SLOPE``, become chords whose
-  sagitta ``rho * (1 - cos(dtheta / 2))`` is at most ``chord_tolerance`` mm. For an engine that
-  sweeps helices exactly (the analytic one) such a helix becomes the same CL segments on the helix
-  itself (:func:`helix_pieces`), so that both engines' CLs are the same ones.
+  sagitta ``rho * (1 - cos(dtheta / 2))`` is at most ``chord_tolerance`` mm; a ZX / YZ arc is first
+  cut at its in-plane extremes (:func:`quarter_pieces`). For an engine that sweeps such arcs
+  exactly (the analytic one) they become the same CL segments on the arc itself
+  (:func:`helix_pieces`, :func:`vertical_pieces`), so that both engines' CLs are the same ones.
 * Feed moves that go down or up while moving sideways at a slope up to ``STAIRCASE_SLOPE`` (ramps,
   helices, those chords) are cut into pieces on the path that the engine sweeps as a **staircase**:
   each piece as the horizontal move (a line, or an XY arc for a helix) at the height of its end
@@ -75,10 +76,38 @@ def helix_pieces(arc: ArcMove, chord_tolerance: float, max_segment_length: float
     return out
 
 
+def quarter_pieces(arc: ArcMove) -> list[ArcMove]:
+    """``arc`` cut where its in-plane angle passes a multiple of pi/2 (its in-plane extremes, more than
+    1e-9 rad inside it), so that both its in-plane coordinates are monotone along each piece."""
+    a, b, _ = arc.plane.axes
+    a0 = math.atan2(arc.start[b] - arc.center[b], arc.start[a] - arc.center[a])
+    sw = arc.sweep
+    lo, hi = min(a0, a0 + sw), max(a0, a0 + sw)
+    q = math.pi / 2
+    ts = [(k * q - a0) / sw for k in range(math.ceil((lo + 1e-9) / q), math.floor((hi - 1e-9) / q) + 1)]
+    ts = [0.0, *sorted(ts), 1.0]
+    return [arc] if len(ts) == 2 else [arc.piece(ts[i], ts[i + 1]) for i in range(len(ts) - 1)]
+
+
+def vertical_pieces(arc: ArcMove, chord_tolerance: float, ramp_step: float,
+                    max_segment_length: float | None) -> list[ArcMove]:
+    """The pieces of a ZX / YZ arc within one quarter (:func:`quarter_pieces`) that its :func:`chords`
+    would make, each then cut as :func:`staircase` and :meth:`~Move.split` cut that chord, each piece on
+    the arc itself: the same CL segments as the chords', for an engine that sweeps such arcs exactly."""
+    n = _chord_count(arc, chord_tolerance)
+    out: list[ArcMove] = []
+    for k in range(n):
+        piece = arc.piece(k / n, (k + 1) / n)
+        m = sum(len(step.split(max_segment_length)) for step in staircase(chord(piece, piece.start, piece.end),
+                                                                          ramp_step))
+        out += [piece.piece(j / m, (j + 1) / m) for j in range(m)] if m > 1 else [piece]
+    return out
+
+
 def as_chord(move: Move) -> Move:
-    """A piece of :func:`helix_pieces` as the chord an engine that cannot sweep it takes (within
-    ``chord_tolerance`` of it); any other move itself."""
-    if isinstance(move, ArcMove) and move.plane == ArcPlane.XY and move.is_helix and _oblique(move) is None:
+    """A piece of :func:`helix_pieces` or :func:`vertical_pieces` as the chord an engine that cannot
+    sweep it takes (within ``chord_tolerance`` of it); any other move itself."""
+    if isinstance(move, ArcMove) and (move.plane != ArcPlane.XY or (move.is_helix and _oblique(move) is None)):
         return chord(move, move.start, move.end)
     return move
 
@@ -140,10 +169,11 @@ def step_motion(move: Move) -> Move:
 
 
 def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float | None = None,
-                chord_tolerance: float = 1e-3, ramp_step: float = 5e-2, exact_helices: bool = False) -> list[Move]:
+                chord_tolerance: float = 1e-3, ramp_step: float = 5e-2, exact_arcs: bool = False) -> list[Move]:
     """The CL segments of ``moves``, in order; no move is dropped (a zero-length one stays a segment).
-    ``exact_helices``: a helix too steep to be stepped is cut into :func:`helix_pieces`, not chords
-    (the same CL segments, swept on the helix)."""
+    ``exact_arcs``: a helix too steep to be stepped is cut into :func:`helix_pieces`, a ZX / YZ arc
+    (not a helix about its plane's normal) into :func:`vertical_pieces`, not chords (the same CL
+    segments, swept on the arc)."""
     out: list[Move] = []
     for move in moves:
         # a spiral (an arc whose end radius is off its start's: posts round I/J and end points) is
@@ -152,20 +182,28 @@ def cl_segments(moves: list[Move] | tuple[Move, ...], max_segment_length: float 
         for m in move.circular_pieces(chord_tolerance) if isinstance(move, ArcMove) else [move]:
             # ZX / YZ arcs, and helices too steep to be stepped, become chords first
             steep = isinstance(m, ArcMove) and m.plane == ArcPlane.XY and m.is_helix and _oblique(m) is None
-            if steep and exact_helices:
+            if steep and exact_arcs:
                 out += helix_pieces(m, chord_tolerance, max_segment_length)
                 continue
-            curved = steep or (isinstance(m, ArcMove) and m.plane != ArcPlane.XY)
-            pieces = chords(m, chord_tolerance) if curved else [m]
+            vertical = isinstance(m, ArcMove) and m.plane != ArcPlane.XY
+            if vertical and not m.is_helix:
+                quarters = quarter_pieces(m)
+                if exact_arcs:
+                    out += [p for q in quarters for p in vertical_pieces(q, chord_tolerance, ramp_step,
+                                                                        max_segment_length)]
+                    continue
+                pieces = [c for q in quarters for c in chords(q, chord_tolerance)]
+            else:
+                pieces = chords(m, chord_tolerance) if steep or vertical else [m]
             for piece in pieces:
                 for step in staircase(piece, ramp_step):
                     out += step.split(max_segment_length)
     return out
 
 
-def segments_for(moves: list[Move] | tuple[Move, ...], options, exact_helices: bool = False) -> list[Move]:
+def segments_for(moves: list[Move] | tuple[Move, ...], options, exact_arcs: bool = False) -> list[Move]:
     """:func:`cl_segments` with the lengths of an :class:`~fusioncut.engines.base.EngineOptions`."""
-    return cl_segments(moves, options.max_segment_length, options.chord_tolerance, options.ramp_step, exact_helices)
+    return cl_segments(moves, options.max_segment_length, options.chord_tolerance, options.ramp_step, exact_arcs)
 
 
 def horizontal_direction(move: Move) -> tuple[float, float] | None:
@@ -177,5 +215,5 @@ def horizontal_direction(move: Move) -> tuple[float, float] | None:
     return (t[0] / h, t[1] / h)
 
 
-__all__ = ["as_chord", "chord", "chords", "cl_segments", "helix_pieces", "horizontal_direction", "segments_for",
-           "staircase", "step_motion"]
+__all__ = ["as_chord", "chord", "chords", "cl_segments", "helix_pieces", "horizontal_direction", "quarter_pieces",
+           "segments_for", "staircase", "step_motion", "vertical_pieces"]

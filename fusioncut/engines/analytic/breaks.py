@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.sweeps import OUTSIDE, sweep_floor, sweep_lower
+from fusioncut.engines.analytic.sweeps import ARC, OUTSIDE, sweep_floor, sweep_lower
 
 ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
 # for it to be no break point (nothing_removed_near)
@@ -125,7 +125,7 @@ def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]],
         for r in radii:
             edge = 1.0 if r == rim else 0.0
             circles += [(x0, y0, r, owner, edge), (x1, y1, r, owner, edge)]
-            if row[0] == 0.0:
+            if row[0] != ARC:  # a line, or a vertical arc: its XY path is the segment between its ends
                 ux, uy = x1 - x0, y1 - y0
                 n = math.hypot(ux, uy)
                 if n > 0:

@@ -15,6 +15,8 @@ that can be the least lower surface ``h`` somewhere in it. Two closed-form bound
   An arc's: the least over a few tool positions ``t`` whose reach holds the whole cell of
   ``z(t) + f(the farthest corner's distance)``, an upper bound (the lower surface is at most any
   one position's, and the distance to a point is largest at a corner); inf where none holds it.
+  A vertical arc's (:mod:`.vertical`) the same over its two ends; its floor is a line's between its
+  ends (its XY path is that segment, its lowest tip the lower end).
 
 A stock's outside (:func:`.sweeps.outside_row`) has both in closed form: its height ``z0`` where the
 cell reaches beyond its circle (floor) or lies wholly beyond it (ceiling), else inf.
@@ -41,7 +43,9 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.profile import profile_height
-from fusioncut.engines.analytic.sweeps import OUTSIDE, angle_windows, point_segment_distance, sweep_lower, window_span
+from fusioncut.engines.analytic.sweeps import (ARC, OUTSIDE, angle_windows, point_segment_distance, sweep_lower,
+                                               window_span)
+from fusioncut.engines.analytic.vertical import is_vertical
 
 
 DOMINANCE_MOST = 48  # sweeps: a caller that quarters a cell left with more passes this as relevant_sweeps' `most`
@@ -89,9 +93,9 @@ def _segment_meets(x0, y0, x1, y1, ax, ay, bx, by):
 @njit(cache=True)
 def path_distance(S, x0, y0, x1, y1):
     """A lower bound (mm) of the XY distance between the rectangle and the sweep's path: exact for
-    a line (0 where they meet, else the least of its ends' distances to the rectangle and the
-    corners' to it), for an arc the distance to its whole circle."""
-    if S[0] == 0.0:
+    a line and a vertical arc (0 where they meet, else the least of its ends' distances to the
+    rectangle and the corners' to it), for an XY arc the distance to its whole circle."""
+    if S[0] != ARC:
         ax, ay, bx, by = S[1], S[2], S[4], S[5]
         if _segment_meets(x0, y0, x1, y1, ax, ay, bx, by):
             return 0.0
@@ -146,7 +150,7 @@ def cell_floor(S, P, R, x0, y0, x1, y1, eps):
     d = path_distance(S, x0, y0, x1, y1)
     if d > R + eps:
         return math.inf
-    low = min(S[3], S[6]) if S[0] == 0.0 else _arc_low_tip(S, x0, y0, x1, y1, R + eps)
+    low = _arc_low_tip(S, x0, y0, x1, y1, R + eps) if S[0] == ARC else min(S[3], S[6])
     return low + profile_height(P, min(d, R))
 
 
@@ -181,8 +185,15 @@ def cell_ceiling(S, P, R, x0, y0, x1, y1):
     line's: its maximum there); inf where none is known (module docstring)."""
     if S[0] == OUTSIDE:
         return S[3] if _point_distance(x0, y0, x1, y1, S[7], S[8]) >= S[9] else math.inf
-    if S[0] != 0.0:
+    if S[0] == ARC:
         return _arc_ceiling(S, P, R, x0, y0, x1, y1)
+    if is_vertical(S):  # the tool at either end, where its reach holds the whole rectangle
+        best = math.inf
+        for ex, ey, ez in ((S[1], S[2], S[3]), (S[4], S[5], S[6])):
+            far = _farthest_corner(x0, y0, x1, y1, ex, ey)
+            if far <= R:
+                best = min(best, ez + profile_height(P, far))
+        return best
     top = -math.inf
     for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
         if point_segment_distance(cx, cy, S[1], S[2], S[4], S[5]) > R:

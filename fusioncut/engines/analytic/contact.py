@@ -16,7 +16,8 @@ e + r (cos theta, sin theta)`` at height ``e_z + zs`` is **engaged** when both h
   front iff ``phi'(1) <= 0``, that is ``u . v_xy >= rho'(zs) v_z`` with ``u`` the unit radial
   direction and ``v = c'(1)``: a closed form (half the circle on a level move, all of it on a plunge,
   more than half going down a ramp). On an arc the same local condition holds and the least ``phi``
-  over the arc must not be below ``-eps`` (the tool at an earlier turn of a helix or circle).
+  over the arc must not be below ``-eps`` (the tool at an earlier turn of a helix or circle); on a
+  vertical arc the point must not lie above the arc's own lower surface (:mod:`.vertical`).
 
 Interval ends: the predicate is evaluated at :data:`N_SCAN` even angles plus the closed-form front
 limits, then every change between neighbours is bisected to :data:`ANGLE_TOL` rad. The scan takes
@@ -48,6 +49,7 @@ from fusioncut.engines.analytic.polar import ring_breaks
 from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope
 from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_holds, end_velocity, floor_within, segment_nearest,
                                                sweep_floor, sweep_lower)
+from fusioncut.engines.analytic.vertical import is_vertical, vertical_lower
 
 N_SCAN = 720
 BLOCK = 8  # scan angles tested at once (block_state)
@@ -206,8 +208,13 @@ def _ahead(theta, vx, vy, lift):
 @njit(cache=True, inline="always")
 def _past_own_turns(S, P, R, px, py, pz, eps):
     """The front condition's part beyond the closed form: (px, py, pz) is not inside the tool at an
-    earlier position of the CL's arc by more than ``eps`` (a line's front needs nothing more)."""
-    return S[0] == 0.0 or not arc_holds(S, P, R, px, py, pz, eps)
+    earlier position of the CL's arc by more than ``eps`` (a line's front needs nothing more; a vertical
+    arc's: not above its own lower surface over the footprint shrunk by ``eps``, :mod:`.vertical`)."""
+    if S[0] == 0.0:
+        return True
+    if is_vertical(S):
+        return vertical_lower(S, P, R, px, py, -eps) >= pz - eps
+    return not arc_holds(S, P, R, px, py, pz, eps)
 
 
 @njit(cache=True)

@@ -10,10 +10,10 @@ when
 * the stock held material there: ``q = e + R u(theta)`` strictly inside the stock's box, ``z`` strictly
   between its bottom and top, and below every earlier sweep's lower surface less ``eps``
   (:func:`.contact.material_blocker`): ``z < H(q) = min_j L_j(q) - eps``, footprints widened by ``eps``,
-* and, on an arc, no earlier position of the CL holds it by more than ``eps``: a flat end mill's tool
-  at ``t`` holds ``(q, z)`` iff ``|q - c(t)| < R`` and ``z >= z(t)``, so that is ``z < m(q)``, the least
-  tip height over the positions within ``R - eps`` of ``q`` (:func:`.sweeps.arc_lower` with the
-  footprint narrowed by ``eps``; :func:`.contact._past_own_turns`).
+* and, on an arc (XY or vertical), no earlier position of the CL holds it by more than ``eps``: a flat
+  end mill's tool at ``t`` holds ``(q, z)`` iff ``|q - c(t)| < R`` and ``z >= z(t)``, so that is
+  ``z < m(q)``, the least tip height over the positions within ``R - eps`` of ``q`` (the CL's own lower
+  surface with the footprint narrowed by ``eps``; :func:`.contact._past_own_turns`).
 
 Each condition but the first bounds ``z`` on one side, and none depends on ``z`` otherwise, so the
 engaged heights at ``theta`` are one interval, and the contact area between heights ``z_lo`` and
@@ -40,7 +40,7 @@ from numba import njit
 
 from fusioncut.engines.analytic.contact import _GOLDEN, beside_walls, front_limits
 from fusioncut.engines.analytic.polar import _wrap, ring_breaks
-from fusioncut.engines.analytic.sweeps import ARC, end_velocity, sweep_lower
+from fusioncut.engines.analytic.sweeps import LINE, end_velocity, sweep_lower
 from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
 
 
@@ -54,7 +54,7 @@ def _high(theta, S, P, R, low, z1, C, CB, PP, NPC, RR, stock, eps):
     if not (stock[0] < qx < stock[3] and stock[1] < qy < stock[4]):
         return -math.inf
     high = min(z1, stock[5])
-    if S[0] == ARC:
+    if S[0] != LINE:  # an arc's own earlier positions (a line's front needs none)
         high = min(high, sweep_lower(S, P, R, qx, qy, -eps))
     for j in range(C.shape[0]):
         if high <= low:

@@ -79,7 +79,7 @@ from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.polar import held_annuli, polar_applies, polar_volume
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                 profile_radius, profile_radius_slope, rim_radius, upper_parts)
-from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row
+from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row, vertical_row
 from fusioncut.engines.analytic.volume import removed_volume, rough_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
@@ -294,7 +294,7 @@ class AnalyticEngine:
         B-Rep engine's), a helix too steep to be stepped cut into pieces on the helix rather than
         chords (:func:`fusioncut.engines.segments.helix_pieces`): it sweeps helices exactly, and the
         pieces of one helix are one sweep in its index. :meth:`index_only` takes these."""
-        return cl_sequence(toolpath, self.options, default_tool, start_at, exact_helices=True)
+        return cl_sequence(toolpath, self.options, default_tool, start_at, exact_arcs=True)
 
     def index_only(self, cl: CL) -> None:
         """Take CL ``cl`` as done without computing it: its sweep is indexed, nothing is counted."""
@@ -729,6 +729,33 @@ def _break_radii(row: np.ndarray, pieces: np.ndarray, levels: tuple[float, float
     return tuple(out)
 
 
+def _vertical_sweep_row(move: ArcMove, R: float, tool_index: int
+                        ) -> tuple[np.ndarray, tuple[float, float, float, float], float]:
+    """:func:`sweep_row` of a ZX / YZ arc within one quarter of its circle (:func:`.segments.quarter_pieces`):
+    on its start's circle in its plane, ending at the programmed end's angle (:mod:`.vertical`); a piece
+    too short to have a direction is swept as the line between its ends."""
+    if move.is_helix:
+        raise InputError("the analytic engine sweeps ZX/YZ arcs in their plane only (helical ones come as chords)",
+                         move.source)
+    zx = move.plane == ArcPlane.ZX
+    si = 0 if zx else 1  # the machine axis along the arc's plane
+    sc, zc = move.center[si], move.center[2]
+    s0, z0 = move.start[si] - sc, move.start[2] - zc
+    rho = math.hypot(s0, z0)
+    a0 = math.atan2(z0, s0)
+    # G18's in-plane angle runs from z towards x, the row's from s (= x) towards z: the opposite sense
+    sw = -move.sweep if zx else move.sweep
+    end = list(move.start)
+    end[si], end[2] = sc + rho * math.cos(a0 + sw), zc + rho * math.sin(a0 + sw)
+    x0, y0, x1, y1 = min(move.start[0], end[0]), min(move.start[1], end[1]), max(move.start[0], end[0]), \
+        max(move.start[1], end[1])
+    box = (x0 - R - 1e-9, y0 - R - 1e-9, x1 + R + 1e-9, y1 + R + 1e-9)
+    z_low = min(move.start[2], end[2])
+    if rho * abs(sw) <= 1e-12 or move.start[2] == end[2]:
+        return line_row(move.start, tuple(end), tool_index), box, z_low
+    return vertical_row(move.start, tuple(end), sc, zx, rho, a0, sw, tool_index), box, z_low
+
+
 def sweep_row(move: Move, profile: LowerProfile, tool_index: int
               ) -> tuple[np.ndarray, tuple[float, float, float, float], float]:
     """(the sweep's row, its footprint box (x0, y0, x1, y1), its lowest tip height) for a CL segment
@@ -736,9 +763,9 @@ def sweep_row(move: Move, profile: LowerProfile, tool_index: int
     :meth:`fusioncut.model.moves.ArcMove.circular_pieces`), ending at the programmed end's angle."""
     R = profile.radius
     z_low = min(move.start[2], move.end[2])
+    if isinstance(move, ArcMove) and move.plane != ArcPlane.XY:
+        return _vertical_sweep_row(move, R, tool_index)
     if isinstance(move, ArcMove):
-        if move.plane != ArcPlane.XY:
-            raise InputError("the analytic engine sweeps XY arcs only (ZX/YZ arcs come as chords)", move.source)
         cx, cy = move.center[0], move.center[1]
         rho = math.hypot(move.start[0] - cx, move.start[1] - cy)
         a0 = math.atan2(move.start[1] - cy, move.start[0] - cx)

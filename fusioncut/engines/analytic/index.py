@@ -20,6 +20,7 @@ import numpy as np
 
 from fusioncut.engines.analytic.profile import LowerProfile
 from fusioncut.engines.analytic.sweeps import NCOL
+from fusioncut.engines.analytic.vertical import is_vertical, within_quarter
 
 
 class ProfileTable:
@@ -149,7 +150,8 @@ class SweepIndex:
 def continues(last: np.ndarray, row: np.ndarray) -> bool:
     """Whether sweep ``row`` carries on along ``last``'s path: same tool, starting where it ended
     (1e-12 mm), a line in the same direction or an arc about the same centre with the same radius,
-    sense and pitch (rise per radian), to 1e-12 relative."""
+    sense and pitch (rise per radian), to 1e-12 relative; a vertical arc on the same circle, the
+    joined piece within one quarter of it (:mod:`.vertical`)."""
     if last[0] != row[0] or last[12] != row[12]:
         return False
     if abs(last[4] - row[1]) > 1e-12 or abs(last[5] - row[2]) > 1e-12 or abs(last[6] - row[3]) > 1e-12:
@@ -164,6 +166,9 @@ def continues(last: np.ndarray, row: np.ndarray) -> bool:
         return False
     if last[11] * row[11] <= 0:
         return False
+    if is_vertical(row):  # on the same circle (its centre's height too), the joined angles within one quarter
+        zc_a, zc_b = last[3] - last[9] * math.sin(last[10]), row[3] - row[9] * math.sin(row[10])
+        return abs(zc_a - zc_b) <= 1e-12 * max(1.0, last[9]) and within_quarter(last[10], last[11] + row[11])
     pitch_a = (last[6] - last[3]) / last[11]
     pitch_b = (row[6] - row[3]) / row[11]
     return abs(pitch_a - pitch_b) <= 1e-12 * max(1.0, abs(pitch_a))

@@ -247,3 +247,15 @@ def profile_radius_slope(P, h):
     if s <= 0.0:
         return math.inf
     return 1.0 / s
+
+
+@njit(cache=True, inline="always")
+def is_flat(P):
+    """Whether the lower profile ``P`` is a flat end mill's: one line piece of slope 0 (f = 0 out to R)."""
+    return P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0
+
+
+@njit(cache=True, inline="always")
+def is_ball(P, R):
+    """Whether the lower profile ``P`` (radius ``R``) is a ball's: one arc of radius R about (0, R)."""
+    return P.shape[0] == 1 and P[0, 0] == ARC and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R

@@ -1,4 +1,4 @@
-"""Sweeps of a tool of revolution along a line or an XY arc / helix: their lower surface, exactly.
+"""Sweeps of a tool of revolution along a line, an XY arc / helix or a vertical arc: their lower surface, exactly.
 
 Machine frame, mm, radians. A sweep is one float64 row of :data:`SWEEP_COLUMNS`:
 
@@ -11,6 +11,8 @@ Machine frame, mm, radians. A sweep is one float64 row of :data:`SWEEP_COLUMNS`:
   lower surface is ``z0`` (below the stock's bottom) wherever ``|p - (cx, cy)| >= rho - eps`` and
   inf inside (its wall is the bar's side, as a flat end mill's is its own), so that every reader of
   the sweeps sees the bar's side as it sees an earlier pass's wall;
+* ``kind`` 3 or 4, an arc in the ZX or YZ plane (G18, G19) within one quarter of its circle
+  (:mod:`.vertical`, which has its lower surface): its XY path is the segment between its ends;
 
 ``t`` in [0, 1], ``tool`` the index of the tool's lower profile (:mod:`.profile`) in the engine's
 table. With the lower profile ``f`` (radius ``R``), the sweep removes every point above its
@@ -63,7 +65,10 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.brent import brent_best, brent_next, brent_start, brent_take
-from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope, profile_slope
+from fusioncut.engines.analytic.profile import (is_ball, is_flat, profile_height, profile_radius, profile_radius_slope,
+                                                profile_slope)
+from fusioncut.engines.analytic.vertical import (YZ_ARC, ZX_ARC, is_vertical, vertical_lower, vertical_positions,
+                                                 vertical_velocity, within_quarter)
 
 SWEEP_COLUMNS = ("kind", "x0", "y0", "z0", "x1", "y1", "z1", "cx", "cy", "rho", "a0", "sw", "tool")
 NCOL = len(SWEEP_COLUMNS)
@@ -100,6 +105,22 @@ def outside_row(center, radius: float, z: float, tool: int) -> np.ndarray:
     return row
 
 
+def vertical_row(start, end, s_centre: float, plane_zx: bool, rho: float, a0: float, sw: float,
+                 tool: int) -> np.ndarray:
+    """The row of a vertical arc from ``start`` (on its circle) to ``end`` (x, y, z, mm): in the ZX plane
+    ``y = start's y`` about ``x = s_centre`` (``plane_zx``), else in the YZ plane ``x = start's x`` about
+    ``y = s_centre``; angles as in the module docstring."""
+    if not within_quarter(a0, sw):
+        raise ValueError(f"a vertical arc sweep spans one quarter of its circle at most (angles {a0!r}, {sw!r})")
+    row = np.zeros(NCOL)
+    row[0] = ZX_ARC if plane_zx else YZ_ARC
+    row[1:4] = start
+    row[4:7] = end
+    row[7], row[8] = (s_centre, start[1]) if plane_zx else (start[0], s_centre)
+    row[9], row[10], row[11], row[12] = rho, a0, sw, tool
+    return row
+
+
 @njit(cache=True, inline="always")
 def outside_lower(S, px, py, eps):
     """The lower surface of a stock's outside (kind 2, module docstring) at ``p``: ``z0`` at or
@@ -107,18 +128,6 @@ def outside_lower(S, px, py, eps):
     if math.hypot(px - S[7], py - S[8]) >= S[9] - eps:
         return S[3]
     return math.inf
-
-
-@njit(cache=True, inline="always")
-def is_flat(P):
-    """Whether the lower profile ``P`` is a flat end mill's: one line piece of slope 0 (f = 0 out to R)."""
-    return P.shape[0] == 1 and P[0, 0] == 0.0 and P[0, 4] == 0.0
-
-
-@njit(cache=True, inline="always")
-def is_ball(P, R):
-    """Whether the lower profile ``P`` (radius ``R``) is a ball's: one arc of radius R about (0, R)."""
-    return P.shape[0] == 1 and P[0, 0] == ARC and P[0, 3] == 0.0 and P[0, 4] == R and P[0, 5] == R
 
 
 # -- lines ---------------------------------------------------------------------------------------
@@ -638,6 +647,8 @@ def sweep_lower(S, P, R, px, py, eps):
         return line_lower(S, P, R, px, py, eps)
     if S[0] == OUTSIDE:
         return outside_lower(S, px, py, eps)
+    if is_vertical(S):
+        return vertical_lower(S, P, R, px, py, eps)
     return arc_lower(S, P, R, px, py, eps)
 
 
@@ -659,8 +670,9 @@ def point_segment_distance(px, py, ax, ay, bx, by):
 
 @njit(cache=True, inline="always")
 def point_path_distance(S, px, py):
-    """The least XY distance (mm) from ``p`` to the path of a line or arc sweep ``S``."""
-    if S[0] == 0.0:
+    """The least XY distance (mm) from ``p`` to the path of a line or arc sweep ``S`` (a vertical arc's XY
+    path is the segment between its ends, :mod:`.vertical`)."""
+    if S[0] == 0.0 or is_vertical(S):
         return point_segment_distance(px, py, S[1], S[2], S[4], S[5])
     qx, qy = px - S[7], py - S[8]
     Q = math.sqrt(qx * qx + qy * qy)
@@ -704,28 +716,34 @@ def end_velocity(S):
     """(vx, vy, vz): dc/dt at t = 1 (mm per unit t)."""
     if S[0] == 0.0:
         return S[4] - S[1], S[5] - S[2], S[6] - S[3]
+    if is_vertical(S):
+        return vertical_velocity(S)
     a = S[10] + S[11]
     return -S[9] * S[11] * math.sin(a), S[9] * S[11] * math.cos(a), S[6] - S[3]
 
 
 def brute_lower(S: np.ndarray, P: np.ndarray, R: float, px: float, py: float, n: int = 200_001,
-                refine: int = 0) -> float:
+                refine: int = 0, eps: float = 0.0) -> float:
     """L(p) by dense sampling of t (for tests): an upper bound that tends to L as n grows. ``refine``
     times over, the ``n`` samples are taken again between the best one's neighbours: where the
-    minimum is smooth, within ~(2 / n) ** (refine + 1) of t's range of it."""
+    minimum is smooth, within ~(2 / n) ** (refine + 1) of t's range of it. ``eps`` widens the footprint
+    as :func:`sweep_lower`'s does."""
     t = np.linspace(0.0, 1.0, n)
     best = math.inf
     for _ in range(refine + 1):
+        z = S[3] + t * (S[6] - S[3])
         if S[0] == LINE:
             cx, cy = S[1] + t * (S[4] - S[1]), S[2] + t * (S[5] - S[2])
+        elif is_vertical(S):
+            cx, cy, z = vertical_positions(S, t)
         else:
             a = S[10] + t * S[11]
             cx, cy = S[7] + S[9] * np.cos(a), S[8] + S[9] * np.sin(a)
         d = np.hypot(px - cx, py - cy)
-        ok = d <= R
+        ok = d <= R + eps
         if not ok.any():
             return best
-        v = np.where(ok, S[3] + t * (S[6] - S[3]) + _heights(P, np.minimum(d, R)), np.inf)
+        v = np.where(ok, z + _heights(P, np.minimum(d, R)), np.inf)
         i = int(np.argmin(v))
         best = min(best, float(v[i]))
         t = np.linspace(t[max(i - 1, 0)], t[min(i + 1, n - 1)], n)

@@ -34,7 +34,7 @@ def bore(turns: int, decimals: int | None = None) -> list:
 def test_the_pieces_are_the_chords_cl_segments_on_the_helix():
     arc = bore(1)[1]
     for max_len in (None, 0.02):
-        chords, pieces = cl_segments([arc], max_len), cl_segments([arc], max_len, exact_helices=True)
+        chords, pieces = cl_segments([arc], max_len), cl_segments([arc], max_len, exact_arcs=True)
         assert len(pieces) == len(chords) > 60
         assert all(isinstance(p, ArcMove) for p in pieces)
         # the CL ends on the helix are the chords' ends, but for sub-pieces of a chord (on the chord)
