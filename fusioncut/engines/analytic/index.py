@@ -7,6 +7,16 @@ mm: every lower profile is >= 0 above the tip). A sweep is registered in every b
 overlaps, so a query for a box meets only the sweeps registered in the bins the box overlaps,
 then keeps those whose own box overlaps it: a point meets only sweeps that can contain it.
 
+A sweep that another one along the **same XY path** lies under is **retired**: no query meets it
+again. Two sweeps have the same XY path when their kind, tool part and every column but the heights
+are equal (a contour or an adaptive pattern repeated at several depths: the same numbers in the
+program, so the same floats); then each tool position of one stands over the other's at the same
+``t``, and the heights differ by a function linear in ``t`` (a line's, an XY arc's; a vertical arc's by a
+constant), so one whose heights at both ends are at most the other's is at most it everywhere: its
+lower surface is at most the other's wherever that one reaches, and the other never gives the least
+lower surface (the material) again. A sweep is compared when it is complete, once the next one of
+its tool part does not continue it.
+
 Tool lower profiles (:mod:`fusioncut.engines.analytic.profile`) are kept in one padded table
 ``profiles[k, :counts[k]]`` with their radii ``radii[k]``, indexed by a sweep's ``tool`` column,
 so that the numba kernels get every sweep's tool in flat arrays.
@@ -70,9 +80,11 @@ class SweepIndex:
         self.boxes = np.zeros((64, 4))
         self.z_low = np.zeros(64)
         self.size = 0
-        self._bins: dict[tuple[int, int], list[int]] = defaultdict(list)
+        self.alive = np.ones(64, dtype=bool)  # False: retired (module docstring)
+        self._bins: dict[tuple[int, int], set[int]] = defaultdict(set)
         self._everywhere: list[int] = []  # rows met by every query, in no bin (a round bar's outside)
         self._latest: dict[float, int] = {}  # per tool column, its latest row (a CL's parts interleave)
+        self._paths: dict[tuple[float, ...], list[int]] = defaultdict(list)  # complete live rows per XY path
 
     def _bin_range(self, box) -> tuple[range, range]:
         s = self.bin_size
@@ -106,15 +118,38 @@ class SweepIndex:
             for i in xs:
                 for j in ys:
                     if i not in old[0] or j not in old[1]:  # the bins the grown box newly covers
-                        self._bins[(i, j)].append(k)
+                        self._bins[(i, j)].add(k)
             return k
+        if k is not None:
+            self._complete(k)
         k = self._append(row, box, z_low)
         self._latest[tool] = k
         xs, ys = self._bin_range(box)
         for i in xs:
             for j in ys:
-                self._bins[(i, j)].append(k)
+                self._bins[(i, j)].add(k)
         return k
+
+    def _complete(self, k: int) -> None:
+        """Row ``k`` is complete: retire it where a live row along the same XY path lies under it, else
+        retire those along it that it lies under (module docstring)."""
+        r = self.rows[k]
+        key = (float(r[0]), float(r[12]), *r[1:3].tolist(), *r[4:6].tolist(), *r[7:12].tolist())
+        same = self._paths[key]
+        if any(self.rows[m, 3] <= r[3] and self.rows[m, 6] <= r[6] for m in same):
+            self._retire(k)
+            return
+        for m in [m for m in same if r[3] <= self.rows[m, 3] and r[6] <= self.rows[m, 6]]:
+            same.remove(m)
+            self._retire(m)
+        same.append(k)
+
+    def _retire(self, k: int) -> None:
+        self.alive[k] = False
+        xs, ys = self._bin_range(self.boxes[k])
+        for i in xs:
+            for j in ys:
+                self._bins[(i, j)].discard(k)
 
     def _append(self, row: np.ndarray, box: tuple[float, float, float, float], z_low: float) -> int:
         if self.size == self.rows.shape[0]:
@@ -122,6 +157,7 @@ class SweepIndex:
             self.rows = np.concatenate([self.rows, np.zeros((grow, NCOL))])
             self.boxes = np.concatenate([self.boxes, np.zeros((grow, 4))])
             self.z_low = np.concatenate([self.z_low, np.zeros(grow)])
+            self.alive = np.concatenate([self.alive, np.ones(grow, dtype=bool)])
         k = self.size
         self.rows[k], self.boxes[k], self.z_low[k] = row, box, z_low
         self.size += 1
@@ -132,7 +168,7 @@ class SweepIndex:
         surface can be below ``z_max`` (mm)."""
         xs, ys = self._bin_range(box)
         if len(xs) * len(ys) > 4 * max(len(self._bins), 1):
-            found = np.arange(self.size)  # a box over most of the grid: scan them all
+            found = np.flatnonzero(self.alive[:self.size])  # a box over most of the grid: scan them all
         else:
             hits: set[int] = set(self._everywhere)
             for i in xs:

@@ -73,3 +73,73 @@ def test_a_row_over_the_whole_stock_fills_no_bin_and_every_query_meets_it():
     assert index.near((100.0, 100.0, 100.5, 100.5)).tolist() == [0]
     assert index.near((0.5, 0.0, 0.6, 0.05)).tolist() == [0, 1]
     assert index.near((0.5, 0.0, 0.6, 0.05), z_max=-20.0).tolist() == []
+
+
+def _lowest(index, rows, px, py):
+    return min(sweep_lower(index.rows[k], BALL.pieces, BALL.radius, px, py, 0.0) for k in rows)
+
+
+def test_a_sweep_under_another_along_the_same_path_retires_it():
+    """A pass (two merged pieces) repeated along the same XY path deeper retires the first once complete;
+    one repeated higher retires itself; one shifted a nanometre, or a ramp crossing the first's heights,
+    stays. The least lower surface over the sweeps a query meets is the least over all of them."""
+    def pass_at(z0, z1=None, dy=0.0):
+        z1 = z0 if z1 is None else z1
+        zm = 0.5 * (z0 + z1)
+        return [line_row((0, dy, z0), (2, 1 + dy, zm), 0), line_row((2, 1 + dy, zm), (4, 2 + dy, z1), 0)]
+
+    index = SweepIndex(5.0)
+    moves = [pass_at(-1.0), pass_at(-2.0), pass_at(-0.5), pass_at(-1.5, dy=1e-9), pass_at(-3.0, -0.2),
+             [line_row((9, 9, 0), (9, 9, -1), 0)]]  # the last completes the one before
+    for rows in moves:
+        for row in rows:
+            index.add(row.copy(), box(row), min(row[3], row[6]))
+    assert index.size == 6
+    assert index.alive[:index.size].tolist() == [False, True, False, True, True, True]
+    everything = np.arange(index.size)
+    rng = np.random.default_rng(5)
+    for px, py in rng.uniform(-4, 8, (300, 2)):
+        near = index.near((px, py, px, py))
+        assert not set(near) & {0, 2}
+        if len(near):
+            assert _lowest(index, near, px, py) == _lowest(index, everything, px, py)
+
+
+def test_retiring_sweeps_leaves_every_map_as_it_was(monkeypatch):
+    """A rounded-square contour with a bull-nose mill at three depths, then again higher, then a ball
+    along it deeper: the maps with sweeps retired are those without (to the integrals' tolerances); the
+    first depths' sweeps and the higher pass's are retired."""
+    from fusioncut.engines.analytic.engine import AnalyticEngine
+    from fusioncut.engines.base import EngineOptions
+    from fusioncut.model import ArcMove, BallEndMill, BoxStock, BullNoseEndMill, LinearMove, Toolpath
+
+    def contour(z, tool):
+        pts = [(-5, -8), (5, -8), (8, -5), (8, 5), (5, 8), (-5, 8), (-8, 5), (-8, -5)]
+        centres = [(5, -5), (5, 5), (-5, 5), (-5, -5)]
+        out = [LinearMove((-5, -8, 5), (-5, -8, z), feed=300.0, tool=tool)]
+        for i in range(4):
+            a, b, c = pts[2 * i], pts[2 * i + 1], pts[(2 * i + 2) % 8]
+            out.append(LinearMove((*a, z), (*b, z), feed=600.0, tool=tool))
+            out.append(ArcMove((*b, z), (*c, z), center=(*centres[i], z), feed=600.0, tool=tool))
+        return out + [LinearMove((-5, -8, z), (-5, -8, 5), feed=None, tool=tool, rapid=True)]
+
+    moves = [m for z in (-1.0, -2.0, -3.0, -1.5) for m in contour(z, 1)] + contour(-3.5, 2)
+    tp = Toolpath(tuple(moves), {1: BullNoseEndMill(6, 20, corner_radius=1.0), 2: BallEndMill(4, 20)})
+    stock = BoxStock((-15, -15, -10), (15, 15, 0))
+
+    def run():
+        engine = AnalyticEngine(EngineOptions(max_segment_length=4.0, slice_height=0.5))
+        return engine, list(engine.run(tp, stock))
+
+    retiring, got = run()
+    monkeypatch.setattr(SweepIndex, "_complete", lambda self, k: None)
+    _, want = run()
+    assert (~retiring._index.alive[:retiring._index.size]).sum() >= 27  # three passes of 9 sweeps at least
+    assert sum(m.removed_volume for m in got[-12:]) > 1.0
+    assert len(got) == len(want)
+    for g, w in zip(got, want):
+        assert g.removed_volume == pytest.approx(w.removed_volume, rel=1e-7, abs=1e-9)
+        assert len(g.slices) == len(w.slices)
+        for sg, sw in zip(g.slices, w.slices):
+            assert [e for i in sg.intervals for e in (i.entry, i.exit)] == pytest.approx(
+                [e for i in sw.intervals for e in (i.entry, i.exit)], abs=1e-6)
