@@ -11,7 +11,7 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
   footprint (:mod:`.volume`), to ``volume_tol`` mm per mm² of footprint or ``volume_rel`` of the
   volume (QUADPACK's ``epsabs`` and ``epsrel``; :class:`AnalyticEngine` says how the cells share
   them, the cells likely to hold the most volume first), cell by cell: tiles
-  (:func:`tiles`), quartered while many earlier sweeps can shape the removed height in them or a
+  (:func:`.partition.volume_cells`), quartered while many earlier sweeps can shape the removed height in them or a
   quarter is proven to remove nothing (and is skipped), each cell integrated with only the sweeps
   that can shape it there (:mod:`.cells`); a CL whose whole footprint an earlier, deeper sweep
   holds removes nothing and is not integrated (:func:`.cells.held_below`); a cell where the CL and
@@ -70,13 +70,14 @@ import numpy as np
 
 from fusioncut.engines.analytic.area import Shape, contact_area
 from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
-from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below, relevant_sweeps
+from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below
 from fusioncut.engines.analytic.contact import N_SCAN, N_TOUCH, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.cylinder import side_area, side_range
-from fusioncut.engines.analytic.flat import all_level_flat, flat_volume
+from fusioncut.engines.analytic.flat import flat_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
-from fusioncut.engines.analytic.polar import held_annuli, polar_applies, polar_volume
+from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
+from fusioncut.engines.analytic.polar import polar_volume
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                 profile_radius, profile_radius_slope, rim_radius, upper_parts)
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row, vertical_row
@@ -97,6 +98,8 @@ CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps i
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
 POLAR_SWEEPS = CELL_SWEEPS  # a cell whose sweeps are all on the CL's axis or level (.polar) and which an earlier
 # helix holds in part (polar.held_annuli) is not quartered up to this many: its held radii cost nothing there
+FLAT_FORMS = POLAR_FORMS = True  # the closed forms (.flat, .polar) are taken where they apply (False: those cells are
+# integrated adaptively, as the tests' differential checks do)
 FLAT_SWEEPS = 8  # a cell whose sweeps are all level and flat is integrated in closed form (.flat) whole up to
 # this many, not quartered where a quarter is empty; with more, its quarters cost less (the closed form's parts
 # between curve meetings grow as the square of the curves, and each part's regions with them)
@@ -565,50 +568,21 @@ class AnalyticEngine:
         if held_below(row, profile.radius, C, P, NP, RR):
             return 0.0, tuple(bands)  # retraced above a deeper pass that holds its whole footprint
         total = 0.0
-
-        def cull(cell: tuple[float, float, float, float], C: np.ndarray, CB: np.ndarray):
-            """(the sweeps of ``C`` whose boxes ``CB`` meet the cell, their boxes, and .cells.relevant_sweeps of
-            them)"""
-            meet = (CB[:, 0] <= cell[2]) & (CB[:, 2] >= cell[0]) & (CB[:, 1] <= cell[3]) & (CB[:, 3] >= cell[1])
-            Cm = C[meet]
-            most = DOMINANCE_MOST if cell[2] - cell[0] > MIN_CELL_RADII * scale else math.inf
-            return Cm, CB[meet], *relevant_sweeps(*cell, row, profile.pieces, profile.radius, Cm, P, NP, RR, s[2],
-                                                  s[5], 0.0, CELL_SWEEPS, most)
-
-        cells = [(c, cull(c, C, CB)) for c in tiles(x0, y0, x1, y1, TILE_RADII * scale)]
+        cells, kinds, starts, items = volume_cells(x0, y0, x1, y1, TILE_RADII * scale, row, profile.pieces,
+                                                   profile.radius, C, CB, P, NP, RR, s[2], s[5],
+                                                   MIN_CELL_RADII * scale, CELL_SWEEPS, FLAT_SWEEPS, POLAR_SWEEPS,
+                                                   DOMINANCE_MOST, FLAT_FORMS, POLAR_FORMS)
         adaptive = []  # the cells to integrate adaptively, with their sweeps and boundary curves
-        while cells:
-            (cx0, cy0, cx1, cy1), (Cm, CBm, empty, keep, floors) = cells.pop()
-            if empty:
-                continue
-            Ck, CBk = Cm[keep], CBm[keep]
-            flat = all_level_flat(row, profile.pieces, Ck, P, NP)
-            polar = not flat and polar_applies(row, profile.pieces, Ck, P, NP)
-            if cx1 - cx0 > MIN_CELL_RADII * scale and not (flat and keep.sum() <= FLAT_SWEEPS) and not (
-                    polar and keep.sum() <= POLAR_SWEEPS and len(held_annuli(row, profile.pieces, Ck, P, NP, RR))):
-                # quartered where many sweeps are left, or where a quarter is proven empty (its area
-                # then costs nothing), unless its closed form costs less (FLAT_SWEEPS) or its polar integral
-                # skips what is empty (POLAR_SWEEPS); a quarter needs only
-                # its cell's sweeps: one left out there can give h nowhere in the cell (its floor over the
-                # cell is at least what h is at most)
-                mx, my = 0.5 * (cx0 + cx1), 0.5 * (cy0 + cy1)
-                quarters = [(q, cull(q, Ck, CBk)) for q in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1),
-                                                            (mx, my, cx1, cy1))]
-                if keep.sum() > CELL_SWEEPS or any(c[1][2] for c in quarters):
-                    cells += quarters
-                    continue
-            # the lowest floors first: the least lower surface is then met early, and the others'
-            # closed-form floors skip them (volume.height_and_cause)
-            order = np.flatnonzero(keep)[np.argsort(floors[keep], kind="stable")]
-            Ct, CBt = Cm[order], CBm[order]
+        for (cx0, cy0, cx1, cy1), kind, a, b in zip(cells.tolist(), kinds.tolist(), starts[:-1], starts[1:]):
+            Ct, CBt = C[items[a:b]], CB[items[a:b]]
             circles, segments = self._curves(np.vstack([row[None, :], Ct]), P, NP)
-            if flat:
+            if kind == FLAT:
                 v, vb = flat_volume(cx0, cx1, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct,
                                     CBt, P, NP, RR, s[2], s[5], edges)
                 total += v
                 bands += vb
             else:
-                adaptive.append((cx0, cy0, cx1, cy1, Ct, CBt, circles, segments, polar))
+                adaptive.append((cx0, cy0, cx1, cy1, Ct, CBt, circles, segments, kind == POLAR))
         if adaptive:
             # the CL's relative budget shared by area, the cells likely to hold the most volume first: each
             # stops at the loosest of volume_tol per mm² of it, volume_rel of its own volume and volume_rel of
@@ -702,15 +676,6 @@ def _area_breaks(shaping: np.ndarray, PP: np.ndarray, NPC: np.ndarray, top: floa
         pieces = PP[k, :NPC[k]]
         out.update(float(r[3] + profile_height(pieces, d) - ez) for d in (0.0, *pieces[:, 2]))
     return sorted(out)
-
-
-def tiles(x0: float, y0: float, x1: float, y1: float, size: float) -> list[tuple[float, float, float, float]]:
-    """The rectangle [x0, x1] x [y0, y1] cut into equal tiles (x0, y0, x1, y1) no wider than ``size``
-    (mm): a long CL's footprint meets hundreds of earlier sweeps, a point in it only those of its tile."""
-    nx, ny = max(1, math.ceil((x1 - x0) / size)), max(1, math.ceil((y1 - y0) / size))
-    xs = [x0 + (x1 - x0) * i / nx for i in range(nx)] + [x1]
-    ys = [y0 + (y1 - y0) * j / ny for j in range(ny)] + [y1]
-    return [(xs[i], ys[j], xs[i + 1], ys[j + 1]) for i in range(nx) for j in range(ny)]
 
 
 def _break_radii(row: np.ndarray, pieces: np.ndarray, levels: tuple[float, float]) -> tuple[float, ...]:

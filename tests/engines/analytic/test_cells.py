@@ -11,8 +11,11 @@ from hypothesis import strategies as st
 import fusioncut.engines.analytic.contact as contact
 import fusioncut.engines.analytic.engine as analytic
 from fusioncut.engines.analytic.cells import cell_ceiling, cell_floor
+from fusioncut.engines.analytic.flat import all_level_flat
+from fusioncut.engines.analytic.partition import ADAPTIVE, FLAT, POLAR
+from fusioncut.engines.analytic.polar import polar_applies
 from fusioncut.engines.analytic.profile import lower_profile
-from fusioncut.engines.analytic.sweeps import arc_row, line_row, sweep_lower
+from fusioncut.engines.analytic.sweeps import arc_row, line_row, sweep_lower, vertical_row
 from fusioncut.engines.base import EngineOptions
 from test_sweeps import TOOLS, coord  # the same tool families and coordinates
 
@@ -52,6 +55,26 @@ def test_arc_sweep_floor_and_ceiling_bound_it_over_a_cell(kind, c, rho, a0, sw, 
     start = (c[0] + rho * math.cos(a0), c[1] + rho * math.sin(a0), z[0])
     end = (c[0] + rho * math.cos(a0 + sw), c[1] + rho * math.sin(a0 + sw), z[1])
     row = arc_row(start, end, c, rho, a0, sw, 0)
+    rect = (q[0], q[1], q[0] + size[0], q[1] + size[1])
+    _check(row, lower_profile(TOOLS[kind]), rect, attained=False)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(kind=st.sampled_from(sorted(TOOLS)), zx=st.booleans(), c=st.tuples(coord, coord, coord), rho=st.floats(0.2, 8),
+       quarter=st.integers(-2, 1), f=st.tuples(st.floats(0, 1), st.floats(0, 1)).filter(lambda f: abs(f[0] - f[1]) > 1e-3),
+       q=st.tuples(coord, coord), size=st.tuples(st.floats(0.01, 6), st.floats(0.01, 6)))
+def test_vertical_arc_sweep_floor_and_ceiling_bound_it_over_a_cell(kind, zx, c, rho, quarter, f, q, size):
+    """A ZX / YZ arc within one quarter of its circle: its floor is a line's between its ends, its ceiling
+    the least of its ends' tools that hold the cell."""
+    a0, a1 = ((quarter + v) * math.pi / 2 for v in f)
+    si = 0 if zx else 1
+
+    def point(a):
+        p = [c[0], c[1], c[2] + rho * math.sin(a)]
+        p[si] += rho * math.cos(a)
+        return tuple(p)
+
+    row = vertical_row(point(a0), point(a1), c[si], zx, rho, a0, a1 - a0, 0)
     rect = (q[0], q[1], q[0] + size[0], q[1] + size[1])
     _check(row, lower_profile(TOOLS[kind]), rect, attained=False)
 
@@ -236,15 +259,31 @@ def test_culling_leaves_the_cls_as_they_were_on_a_real_program(monkeypatch, star
         return list(islice(eng.process(toolpath, start_at=start), 4 if start == 1512 else 2))
 
     culled = maps()
-    every = analytic.relevant_sweeps
+    every = contact.relevant_sweeps
 
     def keep_all(*args):
         empty, keep, floors = every(*args)
         return False, np.ones_like(keep), floors
 
-    monkeypatch.setattr(analytic, "relevant_sweeps", keep_all)
+    def whole_tiles(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, *rest):
+        """One cell a tile, with every sweep whose box meets it (.partition.volume_cells' tiles)."""
+        nx, ny = max(1, math.ceil((x1 - x0) / tile)), max(1, math.ceil((y1 - y0) / tile))
+        xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
+        cells, kinds, lists = [], [], []
+        for i in range(nx):
+            for j in range(ny):
+                c = (xs[i], ys[j], xs[i + 1], ys[j + 1])
+                meet = np.flatnonzero((CB[:, 0] <= c[2]) & (CB[:, 2] >= c[0]) & (CB[:, 1] <= c[3]) & (CB[:, 3] >= c[1]))
+                flat = all_level_flat(S, P, C[meet], PP, NPC)
+                polar = not flat and polar_applies(S, P, C[meet], PP, NPC)
+                cells.append(c)
+                kinds.append(FLAT if flat else (POLAR if polar else ADAPTIVE))
+                lists.append(meet)
+        starts = np.cumsum([0] + [len(m) for m in lists])
+        return np.array(cells), np.array(kinds), starts, np.concatenate(lists).astype(np.int64)
+
+    monkeypatch.setattr(analytic, "volume_cells", whole_tiles)
     monkeypatch.setattr(contact, "relevant_sweeps", keep_all)
-    monkeypatch.setattr(analytic, "CELL_SWEEPS", 10**9)
     monkeypatch.setattr(analytic, "held_below", lambda *args: False)  # the retraced entry integrated too
     whole = maps()
     if start == 1512:

@@ -52,7 +52,7 @@ def _both_ways(monkeypatch, moves, tools, stock, **opts):
     closed = analytic.flat_volume
     monkeypatch.setattr(analytic, "flat_volume", lambda *a: calls.append(1) or closed(*a))
     _, flat_maps = run(moves, tools, stock, **opts)
-    monkeypatch.setattr(analytic, "all_level_flat", lambda *a: False)
+    monkeypatch.setattr(analytic, "FLAT_FORMS", False)
     _, adaptive_maps = run(moves, tools, stock, **opts)
     return flat_maps, adaptive_maps, len(calls)
 
@@ -148,7 +148,7 @@ def test_real_level_flat_cuts_in_closed_form_as_the_adaptive_integral(monkeypatc
         return [next(maps) for _ in range(n)]
 
     closed = first(120)
-    monkeypatch.setattr(analytic, "all_level_flat", lambda *a: False)
+    monkeypatch.setattr(analytic, "FLAT_FORMS", False)
     adaptive = first(120)
     assert sum(m.removed_volume for m in closed) > 100
     for a, b in zip(closed, adaptive, strict=True):
@@ -176,7 +176,7 @@ def test_the_adaptive_integral_finds_a_sliver_between_curves_crossing_a_cell(mon
         return next(maps)
 
     closed = cl_1557()
-    monkeypatch.setattr(analytic, "all_level_flat", lambda *a: False)
+    monkeypatch.setattr(analytic, "FLAT_FORMS", False)
     adaptive = cl_1557()
     assert closed.cl_index == adaptive.cl_index == 1557
     assert closed.removed_volume > 20

@@ -75,7 +75,7 @@ def test_a_wider_helix_down_a_bored_hole_removes_the_ring_between(monkeypatch):
     second = sum(m.removed_volume for m in maps[len(alone):])
     assert second == pytest.approx(math.pi * (1.7 ** 2 - 1.6 ** 2) * depth, rel=1e-7)
     assert len(calls) > 50
-    monkeypatch.setattr(analytic, "polar_applies", lambda *a: False)
+    monkeypatch.setattr(analytic, "POLAR_FORMS", False)
     _, adaptive = run(moves, tools, stock)
     for a, b in zip(maps, adaptive, strict=True):
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
@@ -95,7 +95,7 @@ def test_helices_in_polar_coordinates_as_the_adaptive_integral(monkeypatch, rho,
     calls = _spied(monkeypatch)
     _, polar = run(moves, tools, stock, slice_height=0.5)
     assert len(calls) > 20
-    monkeypatch.setattr(analytic, "polar_applies", lambda *a: False)
+    monkeypatch.setattr(analytic, "POLAR_FORMS", False)
     _, adaptive = run(moves, tools, stock, slice_height=0.5)
     assert sum(m.removed_volume for m in polar) > 10
     for a, b in zip(polar, adaptive, strict=True):
@@ -118,7 +118,7 @@ def test_another_tool_or_an_arc_off_the_axis_stays_adaptive(monkeypatch):
     moves = off + _bore(1.0, turns=2, pitch=1.0)
     tools, stock = {1: FlatEndMill(6, 20)}, BoxStock((-8, -8, -6), (8, 8, 0))
     _, maps = run(moves, tools, stock)
-    monkeypatch.setattr(analytic, "polar_applies", lambda *a: False)
+    monkeypatch.setattr(analytic, "POLAR_FORMS", False)
     _, adaptive = run(moves, tools, stock)
     for a, b in zip(maps, adaptive, strict=True):
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
@@ -144,7 +144,7 @@ def test_real_helical_bores_in_polar_coordinates_as_the_adaptive_integral(monkey
     calls = _spied(monkeypatch)
     polar = window(2495, 50) + window(4100, 30)
     assert len(calls) > 100
-    monkeypatch.setattr(analytic, "polar_applies", lambda *a: False)
+    monkeypatch.setattr(analytic, "POLAR_FORMS", False)
     adaptive = window(2495, 50) + window(4100, 30)
     assert sum(m.removed_volume for m in polar) > 10
     for a, b in zip(polar, adaptive, strict=True):
