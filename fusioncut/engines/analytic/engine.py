@@ -106,6 +106,7 @@ FLAT_SWEEPS = 8  # a cell whose sweeps are all level and flat is integrated in c
 SIDE_REL = 1e-9  # a flat end mill's side contact area's tolerance, relative (.cylinder)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 log = logging.getLogger("fusioncut.analytic")
+CURVE_CACHE = 100_000  # sweeps whose boundary curves are kept (a few hundred bytes each)
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
 SWEEPS = "ipw-sweeps.npz"  # the engine state; named like the B-Rep engine's IPW files so that a
 # fresh run clears it with them
@@ -158,6 +159,8 @@ class AnalyticEngine:
     _saved_sweeps: np.ndarray | None = field(default=None, init=False, repr=False)
     # the CLs indexed, in order, with their footprint boxes (.fallback builds a local workpiece of them)
     _done: list[tuple[CL, tuple[float, float, float, float]]] = field(default_factory=list, init=False, repr=False)
+    # each sweep's boundary curves (owner 0) by its row and profile: a sweep meets many cells of many CLs
+    _curve_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, init=False, repr=False)
 
     @property
     def kind(self) -> EngineKind:
@@ -195,6 +198,7 @@ class AnalyticEngine:
         self._tools = ProfileTable()
         self._saved_sweeps = None
         self._done = []
+        self._curve_cache = {}
 
     @property
     def ipw(self) -> None:
@@ -482,10 +486,26 @@ class AnalyticEngine:
         return contact_area(lambda z: _width(args, z), part.profile.pieces, *z_range, breaks)[0]
 
     def _curves(self, rows: np.ndarray, P: np.ndarray, NP: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`.breaks.boundary_curves` of the sweeps ``rows`` (tool tables ``P``, ``NP``)."""
-        pieces = [P[int(r[12]), :NP[int(r[12])]] for r in rows]
-        radii = [_break_radii(r, pc, (self.stock[2], self.stock[5])) for r, pc in zip(rows, pieces)]
-        return boundary_curves(rows, radii, [rim_radius(pc) for pc in pieces])
+        """:func:`.breaks.boundary_curves` of the sweeps ``rows`` (tool tables ``P``, ``NP``), each sweep's
+        taken from the cache where it was made before (the curves in the same order, their owners
+        renumbered)."""
+        parts = []
+        for r in rows:
+            pc = P[int(r[12]), :NP[int(r[12])]]
+            key = r.tobytes() + pc.tobytes()
+            got = self._curve_cache.get(key)
+            if got is None:
+                got = boundary_curves(r[None, :], [_break_radii(r, pc, (self.stock[2], self.stock[5]))],
+                                      [rim_radius(pc)])
+                if len(self._curve_cache) >= CURVE_CACHE:
+                    self._curve_cache.clear()  # a bound on memory: the next cells fill it again
+                self._curve_cache[key] = got
+            parts.append(got)
+        circles = np.concatenate([c for c, _ in parts])
+        segments = np.concatenate([g for _, g in parts])
+        circles[:, 3] = np.repeat(np.arange(len(parts), dtype=np.float64), [len(c) for c, _ in parts])
+        segments[:, 4] = np.repeat(np.arange(len(parts), dtype=np.float64), [len(g) for _, g in parts])
+        return circles, segments
 
     def _end_args(self, part: PartSweep, parts: list[PartSweep], C: np.ndarray, CB: np.ndarray
                   ) -> tuple[tuple, np.ndarray]:

@@ -80,3 +80,35 @@ def test_x_breaks_keep_what_meets_the_cell_and_a_wall_along_y_through_it():
     C, CB, circles, segments = _case(own, line_row((4, -30, -1), (4, 30, -1), 0))
     xs = x_breaks(circles, segments, -2.0, 10.0, -2.0, 2.0, own, FLAT.pieces, FLAT.radius, C, CB, PP, NPC, RR, -10.0)
     assert xs.tolist() == [-2.0, 1.0, 7.0, 10.0]
+
+
+def test_the_engines_cached_curves_are_the_curves_of_its_rows():
+    """The engine keeps each sweep's boundary curves; a cell's curves, however its rows are ordered and
+    whether from the cache or not, are those :func:`boundary_curves` gives them (owners renumbered)."""
+    import math
+
+    from fusioncut.engines.analytic.engine import AnalyticEngine, _break_radii
+    from fusioncut.engines.analytic.profile import rim_radius
+    from fusioncut.engines.analytic.sweeps import arc_row
+    from fusioncut.engines.base import EngineOptions
+    from fusioncut.model import BallEndMill, BoxStock
+
+    engine = AnalyticEngine(EngineOptions())
+    engine.start(BoxStock((-20, -20, -10), (20, 20, 0)))
+    profiles = [lower_profile(FlatEndMill(6, 20)), lower_profile(BallEndMill(4, 20))]
+    P = np.zeros((2, max(p.pieces.shape[0] for p in profiles), 6))
+    for i, p in enumerate(profiles):
+        P[i, :p.pieces.shape[0]] = p.pieces
+    NP = np.array([p.pieces.shape[0] for p in profiles])
+    rng = np.random.default_rng(2)
+    rows = [line_row((*rng.uniform(-9, 9, 2), -1.0), (*rng.uniform(-9, 9, 2), rng.uniform(-3, 0)), i % 2)
+            for i in range(6)]
+    rows += [arc_row((3.0, 0.0, -2.0), (0.0, 3.0, -2.0), (0.0, 0.0), 3.0, 0.0, math.pi / 2, 1)]
+    rows = np.array(rows)
+    for order in ([0, 1, 2, 3, 4, 5, 6], [6, 2, 0, 5], [3, 3, 1], [4]):
+        sub = rows[order]
+        pieces = [P[int(r[12]), :NP[int(r[12])]] for r in sub]
+        want = boundary_curves(sub, [_break_radii(r, pc, (-10.0, 0.0)) for r, pc in zip(sub, pieces)],
+                               [rim_radius(pc) for pc in pieces])
+        got = engine._curves(sub, P, NP)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
