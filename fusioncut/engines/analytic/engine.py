@@ -80,7 +80,8 @@ from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
 from fusioncut.engines.analytic.polar import polar_volume
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                 profile_radius, profile_radius_slope, rim_radius, upper_parts)
-from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row, vertical_row
+from fusioncut.engines.analytic.sweeps import (ARC, LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row,
+                                               vertical_row)
 from fusioncut.engines.analytic.volume import removed_volume, rough_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
@@ -106,6 +107,7 @@ FLAT_SWEEPS = 8  # a cell whose sweeps are all level and flat is integrated in c
 SIDE_REL = 1e-9  # a flat end mill's side contact area's tolerance, relative (.cylinder)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 log = logging.getLogger("fusioncut.analytic")
+BAND_TOL = 1e-6  # mm: a slice this close to a height where material may begin or end is scanned on its own
 CURVE_CACHE = 100_000  # sweeps whose boundary curves are kept (a few hundred bytes each)
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
 SWEEPS = "ipw-sweeps.npz"  # the engine state; named like the B-Rep engine's IPW files so that a
@@ -424,8 +426,19 @@ class AnalyticEngine:
             levels = sorted({top, *args[3][near, 3], *args[3][near, 6]})
             z_range = self._range(args, near, cut, 0.0, tool.flute_length, levels)
             heights = slice_heights(z_range, tool, dz)
+            # a flat end mill's level CL among flat cuts of one height each: the slices between the same two
+            # heights where material can begin or end hold the same arcs (.contact: a point's material and
+            # front tests compare its height only with those), so each band is scanned once
+            banded = _constant_lowers(row, profile.pieces, args[3][near], self._tools.profiles, self._tools.counts)
+            bounds = np.array(sorted({self.stock[2], *levels}))
+            scanned: dict[int, list[tuple[float, float]]] = {}
             for z, active in heights:
-                arcs.append(_arcs_at(args, z) if active else [])
+                band = _band(row[6] + z, bounds) if banded and active else None
+                if band is None or band not in scanned:
+                    found = _arcs_at(args, z) if active else []
+                    if band is not None:
+                        scanned[band] = found
+                arcs.append(scanned[band] if band is not None else found)
             t3 = time.perf_counter()
             timings["contact"] = (t3 - t2) * 1e3
             flute_area = shank_area = 0.0
@@ -652,6 +665,26 @@ def _with_own(C: np.ndarray, CB: np.ndarray, parts: list[PartSweep]) -> tuple[np
     if not parts:
         return C, CB
     return np.vstack([C, *(p.row[None, :] for p in parts)]), np.vstack([CB, np.array([p.box for p in parts])])
+
+
+def _constant_lowers(row: np.ndarray, pieces: np.ndarray, rows: np.ndarray, P: np.ndarray, NP: np.ndarray) -> bool:
+    """Whether the CL's sweep ``row`` and each sweep of ``rows`` are a flat end mill's with one lower surface
+    height over the footprint: a level line or arc, or a plunge (its lower end); or a round bar's outside."""
+    def constant(r: np.ndarray, pc: np.ndarray) -> bool:
+        level = r[0] in (LINE, ARC) and r[3] == r[6]
+        plunge = r[0] == LINE and r[1] == r[4] and r[2] == r[5]
+        return r[0] == OUTSIDE or (is_flat(pc) and (level or plunge))
+
+    return constant(row, pieces) and all(constant(r, P[int(r[12]), :NP[int(r[12])]]) for r in rows)
+
+
+def _band(z: float, bounds: np.ndarray) -> int | None:
+    """The index of the interval between the sorted heights ``bounds`` (mm) that holds ``z`` strictly inside,
+    :data:`BAND_TOL` from either end; None where ``z`` is that close to one of them."""
+    i = int(np.searchsorted(bounds, z))
+    if (i > 0 and z - bounds[i - 1] <= BAND_TOL) or (i < len(bounds) and bounds[i] - z <= BAND_TOL):
+        return None
+    return i
 
 
 def _found(args: tuple, z: float) -> np.ndarray:

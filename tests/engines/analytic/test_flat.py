@@ -181,3 +181,22 @@ def test_the_adaptive_integral_finds_a_sliver_between_curves_crossing_a_cell(mon
     assert closed.cl_index == adaptive.cl_index == 1557
     assert closed.removed_volume > 20
     assert adaptive.removed_volume == pytest.approx(closed.removed_volume, rel=1e-8)
+
+
+@pytest.mark.parametrize("seed,decimals", [(5, None), (6, 3)])
+def test_slices_between_the_same_levels_are_scanned_once_and_hold_the_same_arcs(monkeypatch, seed, decimals):
+    """A flat end mill's level CLs among level flat cuts: the slices between two heights where material
+    may begin or end are scanned once (.engine._band); every slice's arcs are those a scan of each finds."""
+    moves, tools = _level_program(seed, decimals), {1: FlatEndMill(6, 20)}
+    stock = BoxStock((-20, -15, -10), (20, 15, 0))
+    scans = []
+    arcs_at = analytic._arcs_at
+    monkeypatch.setattr(analytic, "_arcs_at", lambda *a: scans.append(1) or arcs_at(*a))
+    _, banded = run(moves, tools, stock, slice_height=0.25)
+    n_banded = len(scans)
+    monkeypatch.setattr(analytic, "_band", lambda z, bounds: None)
+    _, each = run(moves, tools, stock, slice_height=0.25)
+    assert n_banded < 0.6 * (len(scans) - n_banded)  # far fewer scans
+    assert sum(len(m.engaged_slices) for m in each) > 100
+    for a, b in zip(banded, each, strict=True):
+        assert a.slices == b.slices
