@@ -167,9 +167,9 @@ def sweep_grid(x0, y0, width, n, S, P, R, C, PP, NPC, RR, zb, zt, eps):
     footprints widened by ``eps``); a point then meets only its cell's sweeps. Points outside the
     square take the nearest cell: callers keep them inside.
 
-    A block of cells is halved, the longer side first, down to single cells, each half starting from
-    the sweeps its block kept: one left out of a block can shape the material in none of its cells (as
-    the volume's quarters are), and the halves' tests are cheaper for it."""
+    A block of cells is quartered (halved along a side one cell wide) down to single cells, each part
+    starting from the sweeps its block kept: one left out of a block can shape the material in none of
+    its cells (as the volume's quarters are), and the parts' tests are cheaper for it."""
     w = width / n
     items = [np.empty(0, dtype=np.int64) for _ in range(n * n)]
     stack = [(0, n, 0, n, np.arange(C.shape[0]))]
@@ -181,12 +181,13 @@ def sweep_grid(x0, y0, width, n, S, P, R, C, PP, NPC, RR, zb, zt, eps):
         rows = rows[keep]
         if single:
             items[i0 * n + j0] = rows
-        elif i1 - i0 >= j1 - j0:
-            stack.append(((i0 + i1) // 2, i1, j0, j1, rows))
-            stack.append((i0, (i0 + i1) // 2, j0, j1, rows))
-        else:
-            stack.append((i0, i1, (j0 + j1) // 2, j1, rows))
-            stack.append((i0, i1, j0, (j0 + j1) // 2, rows))
+            continue
+        im = (i0 + i1) // 2 if i1 - i0 > 1 else i1
+        jm = (j0 + j1) // 2 if j1 - j0 > 1 else j1
+        for a0, a1 in ((i0, im), (im, i1)):
+            for b0, b1 in ((j0, jm), (jm, j1)):
+                if a0 < a1 and b0 < b1:
+                    stack.append((a0, a1, b0, b1, rows))
     starts = np.zeros(n * n + 1, dtype=np.int64)
     for c in range(n * n):
         starts[c + 1] = starts[c] + items[c].shape[0]
