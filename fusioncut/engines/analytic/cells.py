@@ -42,7 +42,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.profile import profile_height
+from fusioncut.engines.analytic.profile import is_flat, profile_height
 from fusioncut.engines.analytic.sweeps import (ARC, OUTSIDE, angle_windows, point_segment_distance, sweep_lower,
                                                window_span)
 from fusioncut.engines.analytic.vertical import is_vertical
@@ -194,12 +194,14 @@ def cell_ceiling(S, P, R, x0, y0, x1, y1):
             if far <= R:
                 best = min(best, ez + profile_height(P, far))
         return best
+    level_flat = S[3] == S[6] and is_flat(P)  # its lower surface is S[3] all over its footprint
     top = -math.inf
     for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
         if point_segment_distance(cx, cy, S[1], S[2], S[4], S[5]) > R:
             return math.inf
-        top = max(top, sweep_lower(S, P, R, cx, cy, 0.0))
-    return top
+        if not level_flat:
+            top = max(top, sweep_lower(S, P, R, cx, cy, 0.0))
+    return S[3] if level_flat else top
 
 
 @njit(cache=True)
