@@ -76,16 +76,21 @@ def helix_pieces(arc: ArcMove, chord_tolerance: float, max_segment_length: float
     return out
 
 
-def quarter_pieces(arc: ArcMove) -> list[ArcMove]:
-    """``arc`` cut where its in-plane angle passes a multiple of pi/2 (its in-plane extremes, more than
-    1e-9 rad inside it), so that both its in-plane coordinates are monotone along each piece."""
+def quarter_crossings(arc: ArcMove) -> tuple[float, float, range]:
+    """(the start's in-plane angle, the sweep, the multiples k of pi/2 that the in-plane angle passes more
+    than 1e-9 rad inside the arc): its in-plane extremes, in O(1) however many turns it makes."""
     a, b, _ = arc.plane.axes
     a0 = math.atan2(arc.start[b] - arc.center[b], arc.start[a] - arc.center[a])
     sw = arc.sweep
-    lo, hi = min(a0, a0 + sw), max(a0, a0 + sw)
-    q = math.pi / 2
-    ts = [(k * q - a0) / sw for k in range(math.ceil((lo + 1e-9) / q), math.floor((hi - 1e-9) / q) + 1)]
-    ts = [0.0, *sorted(ts), 1.0]
+    lo, hi, q = min(a0, a0 + sw), max(a0, a0 + sw), math.pi / 2
+    return a0, sw, range(math.ceil((lo + 1e-9) / q), math.floor((hi - 1e-9) / q) + 1)
+
+
+def quarter_pieces(arc: ArcMove) -> list[ArcMove]:
+    """``arc`` cut at its in-plane extremes (:func:`quarter_crossings`), so that both its in-plane
+    coordinates are monotone along each piece."""
+    a0, sw, ks = quarter_crossings(arc)
+    ts = [0.0, *sorted((k * math.pi / 2 - a0) / sw for k in ks), 1.0]
     return [arc] if len(ts) == 2 else [arc.piece(ts[i], ts[i + 1]) for i in range(len(ts) - 1)]
 
 
@@ -215,5 +220,5 @@ def horizontal_direction(move: Move) -> tuple[float, float] | None:
     return (t[0] / h, t[1] / h)
 
 
-__all__ = ["as_chord", "chord", "chords", "cl_segments", "helix_pieces", "horizontal_direction", "quarter_pieces",
-           "segments_for", "staircase", "step_motion", "vertical_pieces"]
+__all__ = ["as_chord", "chord", "chords", "cl_segments", "helix_pieces", "horizontal_direction", "quarter_crossings",
+           "quarter_pieces", "segments_for", "staircase", "step_motion", "vertical_pieces"]

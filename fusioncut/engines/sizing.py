@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fusioncut.errors import JobTooLarge
-from fusioncut.engines.segments import STAIRCASE_SLOPE, _oblique, quarter_pieces
+from fusioncut.engines.segments import STAIRCASE_SLOPE, _oblique, quarter_crossings, quarter_pieces
 from fusioncut.model.moves import ArcMove, ArcPlane, Move, Toolpath
 from fusioncut.model.stock import BoxStock, CylinderStock, Stock
 from fusioncut.model.tools import MillingTool
@@ -183,18 +183,10 @@ def move_segments(m: Move, max_segment_length: float | None, chord_tolerance: fl
     return _arc_count(m, max_segment_length, chord_tolerance, ramp_step, room)
 
 
-def _quarter_count(m: ArcMove) -> int:
-    """Pieces :func:`segments.quarter_pieces` cuts ``m`` into, in O(1)."""
-    a, b, _ = m.plane.axes
-    a0 = math.atan2(m.start[b] - m.center[b], m.start[a] - m.center[a])
-    lo, hi, q = min(a0, a0 + m.sweep), max(a0, a0 + m.sweep), math.pi / 2
-    return 1 + max(0, math.floor((hi - 1e-9) / q) - math.ceil((lo + 1e-9) / q) + 1)
-
-
 def _arc_count(m: ArcMove, max_segment_length: float | None, chord_tolerance: float, ramp_step: float,
                room: float) -> int:
     if m.plane != ArcPlane.XY and not m.is_helix:  # cut at its in-plane extremes first
-        nq = _quarter_count(m)
+        nq = 1 + len(quarter_crossings(m)[2])  # segments.quarter_pieces' count
         if nq > 1:
             if nq > room or nq > _SPIRAL_PIECES:  # a lower bound, as for spirals
                 return max(nq, chord_count(m, chord_tolerance))

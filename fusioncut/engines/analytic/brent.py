@@ -13,6 +13,12 @@ import numpy as np
 from numba import njit
 
 _GOLDEN = 0.6180339887498949
+# the arcs' windows of tool positions (.sweeps, .vertical) are sampled at ARC_STEP rad at most and each
+# sampled local minimum refined until the bracket is T_TOL of its first width; BRENT_STEPS bounds the
+# steps (the golden ones alone reach T_TOL in under 50)
+ARC_STEP = 0.05  # rad
+T_TOL = 1e-10
+BRENT_STEPS = 100
 
 # the state: [a, b, x, w, v, fx, fw, fv, d, e, tol], x the best point so far, [a, b] the bracket
 _A, _B, _X, _W, _V, _FX, _FW, _FV, _D, _E, _TOL = range(11)

@@ -73,15 +73,14 @@ from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below
 from fusioncut.engines.analytic.contact import N_SCAN, N_TOUCH, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.cylinder import side_area, side_range
-from fusioncut.engines.analytic.flat import flat_volume
+from fusioncut.engines.analytic.flat import flat_volume, is_level_flat
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
 from fusioncut.engines.analytic.polar import polar_volume
 from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
                                                 profile_radius, profile_radius_slope, rim_radius, upper_parts)
-from fusioncut.engines.analytic.sweeps import (ARC, LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row,
-                                               vertical_row)
+from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row, vertical_row
 from fusioncut.engines.analytic.volume import removed_volume, rough_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
 from fusioncut.engines.cl_maps import CL, CutOutcome, cl_base, cl_sequence, engagement_map, slice_heights
@@ -430,7 +429,7 @@ class AnalyticEngine:
             # heights where material can begin or end hold the same arcs (.contact: a point's material and
             # front tests compare its height only with those), so each band is scanned once
             banded = _constant_lowers(row, profile.pieces, args[3][near], self._tools.profiles, self._tools.counts)
-            bounds = np.array(sorted({self.stock[2], *levels}))
+            bounds = np.array(sorted({self.stock[2], *levels})) if banded else None
             scanned: dict[int, list[tuple[float, float]]] = {}
             for z, active in heights:
                 band = _band(row[6] + z, bounds) if banded and active else None
@@ -671,9 +670,7 @@ def _constant_lowers(row: np.ndarray, pieces: np.ndarray, rows: np.ndarray, P: n
     """Whether the CL's sweep ``row`` and each sweep of ``rows`` are a flat end mill's with one lower surface
     height over the footprint: a level line or arc, or a plunge (its lower end); or a round bar's outside."""
     def constant(r: np.ndarray, pc: np.ndarray) -> bool:
-        level = r[0] in (LINE, ARC) and r[3] == r[6]
-        plunge = r[0] == LINE and r[1] == r[4] and r[2] == r[5]
-        return r[0] == OUTSIDE or (is_flat(pc) and (level or plunge))
+        return is_level_flat(r, pc) or (r[0] == LINE and r[1] == r[4] and r[2] == r[5] and is_flat(pc))
 
     return constant(row, pieces) and all(constant(r, P[int(r[12]), :NP[int(r[12])]]) for r in rows)
 

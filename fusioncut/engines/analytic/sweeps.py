@@ -64,7 +64,8 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.brent import brent_best, brent_next, brent_start, brent_take
+from fusioncut.engines.analytic.brent import (ARC_STEP, BRENT_STEPS, T_TOL, brent_best, brent_next, brent_start,
+                                              brent_take)
 from fusioncut.engines.analytic.profile import (is_ball, is_flat, profile_height, profile_radius, profile_radius_slope,
                                                 profile_slope)
 from fusioncut.engines.analytic.vertical import (YZ_ARC, ZX_ARC, is_vertical, vertical_lower, vertical_positions,
@@ -73,11 +74,8 @@ from fusioncut.engines.analytic.vertical import (YZ_ARC, ZX_ARC, is_vertical, ve
 SWEEP_COLUMNS = ("kind", "x0", "y0", "z0", "x1", "y1", "z1", "cx", "cy", "rho", "a0", "sw", "tool")
 NCOL = len(SWEEP_COLUMNS)
 LINE, ARC, OUTSIDE = 0.0, 1.0, 2.0
-ARC_STEP = 0.05  # rad: the arc windows' sampling step
 _BISECTIONS = 64
 VALUE_TOL = 1e-13  # mm: the error bound of a line sweep's lower surface (module docstring)
-_BRENT_STEPS = 100  # a bound only: Brent's golden steps alone reach T_TOL in under 50
-T_TOL = 1e-10  # the arc windows' minima: the bracket's final width relative to its first
 
 
 def line_row(start, end, tool: int) -> np.ndarray:
@@ -304,7 +302,7 @@ def _bracket_min(mode, S, P, R, px, py, pz, a, x, b, fx):
     error is quadratic in that, far below 1e-20 mm; where the value has a corner (a flat bottom's
     edge, the footprint's rim) the golden steps converge linearly on it."""
     st = brent_start(a, x, b, fx, T_TOL * (b - a))
-    for _ in range(_BRENT_STEPS):
+    for _ in range(BRENT_STEPS):
         u = brent_next(st)
         if math.isnan(u):
             break
@@ -580,7 +578,7 @@ def arc_holds(S, P, R, px, py, pz, eps):
         else:
             m = 0.5 * (ta + tb)
             st = brent_start(ta, m, tb, _arc_gap(S, P, px, py, pz, m), T_TOL * (tb - ta))
-            for _ in range(_BRENT_STEPS):
+            for _ in range(BRENT_STEPS):
                 u = brent_next(st)
                 if math.isnan(u):
                     break

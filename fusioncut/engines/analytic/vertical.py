@@ -27,8 +27,8 @@ the **window**. Over it the lower surface ``L(p) = min z(t) + f(|p - c(t)|)`` is
   the arc, else an end). The lowest point of that closed set on the line is one of its boundary
   points there: where the line crosses a circle of the annulus at an angle within the piece, where
   it crosses a radial edge at a radius within the annulus, or a disc's lowest point on the line;
-* any other profile's: the window sampled at :data:`STEP` rad at most, each sampled local minimum
-  refined by Brent's method (to :data:`T_TOL` of its bracket), as an XY arc's windows where no
+* any other profile's: the window sampled at :data:`.brent.ARC_STEP` rad at most, each sampled local minimum
+  refined by Brent's method (to :data:`.brent.T_TOL` of its bracket), as an XY arc's windows where no
   convexity holds.
 
 ``eps`` (mm) widens the footprint as for the other sweeps (:mod:`.sweeps`): ``|p - c(t)| <= R + eps``
@@ -48,13 +48,11 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.brent import brent_best, brent_next, brent_start, brent_take
+from fusioncut.engines.analytic.brent import (ARC_STEP, BRENT_STEPS, T_TOL, brent_best, brent_next, brent_start,
+                                              brent_take)
 from fusioncut.engines.analytic.profile import is_ball, is_flat, profile_height
 
 ZX_ARC, YZ_ARC = 3.0, 4.0
-STEP = 0.05  # rad: the windows' sampling step (profiles other than flat and ball)
-T_TOL = 1e-10  # the sampled minima: the bracket's final width relative to its first
-_BRENT_STEPS = 100  # a bound only
 ANGLE_TOL = 1e-12  # rad: a point of an annulus' circle this far beyond the piece's angles is on it
 QUARTER_TOL = 1e-9  # rad: a piece may reach this far past a quarter of its circle (rounding of its ends)
 
@@ -174,7 +172,7 @@ def _value(S, P, R, sp, e, zc, a):
 def _sampled_min(S, P, R, sp, e, a1, a2):
     """The least :func:`_value` over the angles [a1, a2]: sampled, each local minimum refined."""
     zc = _centre_z(S)
-    n = max(4, int(math.ceil((a2 - a1) / STEP)))
+    n = max(4, int(math.ceil((a2 - a1) / ARC_STEP)))
     ts = np.empty(n + 1)
     vs = np.empty(n + 1)
     for i in range(n + 1):
@@ -188,7 +186,7 @@ def _sampled_min(S, P, R, sp, e, a1, a2):
             continue
         a, b = ts[max(i - 1, 0)], ts[min(i + 1, n)]
         st = brent_start(a, ts[i], b, vs[i], T_TOL * (b - a))
-        for _ in range(_BRENT_STEPS):
+        for _ in range(BRENT_STEPS):
             u = brent_next(st)
             if math.isnan(u):
                 break
