@@ -44,6 +44,7 @@ import math
 import numpy as np
 from numba import njit
 
+from fusioncut.engines.analytic.brent import _GOLDEN
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, relevant_sweeps
 from fusioncut.engines.analytic.polar import ring_breaks
 from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope
@@ -64,7 +65,6 @@ FRONT_LIMIT = -8
 OWN_TURN = -9
 ENGAGED = -10
 TWO_PI = 2.0 * math.pi
-_GOLDEN = 0.6180339887498949
 
 
 @njit(cache=True, inline="always")

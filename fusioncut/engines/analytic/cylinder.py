@@ -38,7 +38,8 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.contact import _GOLDEN, beside_walls, front_limits
+from fusioncut.engines.analytic.brent import _GOLDEN
+from fusioncut.engines.analytic.contact import beside_walls, front_limits
 from fusioncut.engines.analytic.polar import _wrap, ring_breaks
 from fusioncut.engines.analytic.sweeps import LINE, end_velocity, sweep_lower
 from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
