@@ -31,24 +31,31 @@ MERGE_TOL = 1e-12  # mm: x break points this close are one; a kink moved this fa
 # no more than this times the inner integral's jump there
 
 
+@njit(cache=True, inline="always")
+def _near_lower(C, PP, NPC, RR, j, x, y):
+    """The earlier sweep ``C[j]``'s lower surface at (x, y) (mm), its footprint widened by
+    :data:`ZERO_MARGIN` so that a point on its rim is inside whatever the round-off (the surface is
+    continuous up to its rim, where it takes its limit; beyond, it is +inf, so anything below it
+    near the point is below it all around)."""
+    t = int(C[j, 12])
+    return sweep_lower(C[j], PP[t, :NPC[t]], RR[t], x, y, ZERO_MARGIN)
+
+
 @njit(cache=True)
 def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
     """Whether a meeting of earlier sweeps ``j``'s and ``i``'s curves at (x, y) (``j`` = ``i``: a
     curve's own end or extreme) parts nothing: True where the point lies strictly outside the CL's
     footprint, or strictly inside another sweep's footprint whose lower surface is below, by more
     than :data:`ZERO_MARGIN`, the CL's (or the bottom: nothing is removed around) or ``j``'s or
-    ``i``'s closed-form floor (:func:`.sweeps.sweep_floor`, its footprint widened by the margin:
-    that sweep gives the least lower surface nowhere around, so where it jumps or bends the least
-    one does not, and its curve is no break point there either: the other curve's crossings keep
-    their order through the meeting). All those surfaces are continuous there, so each inequality
+    ``i``'s own (:func:`_near_lower`: that sweep gives the least lower surface nowhere around, so
+    where it jumps or bends the least one does not, and its curve is no break point there either:
+    the other curve's crossings keep their order through the meeting). All those surfaces are continuous there, so each inequality
     holds around the point. The CL's closed-form floor decides first, its surface only where that
     does not."""
     own = sweep_floor(S, P, R, x, y, 0.0)  # the CL's lower surface is at least this; inf outside it
     if own == math.inf:
         return True
-    tj, ti = int(C[j, 12]), int(C[i, 12])
-    hidden = max(sweep_floor(C[j], PP[tj, :NPC[tj]], RR[tj], x, y, ZERO_MARGIN),
-                 sweep_floor(C[i], PP[ti, :NPC[ti]], RR[ti], x, y, ZERO_MARGIN)) - ZERO_MARGIN
+    hidden = max(_near_lower(C, PP, NPC, RR, j, x, y), _near_lower(C, PP, NPC, RR, i, x, y)) - ZERO_MARGIN
     bound = max(max(own, zb) - ZERO_MARGIN, hidden)
     exact = math.nan  # the CL's lower surface itself, found once a sweep needs it
     for k in range(C.shape[0]):
