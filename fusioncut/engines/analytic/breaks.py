@@ -257,7 +257,9 @@ def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, z
     extremes outside it, is then a part of its own, not left to the outer rule's lines to hit), the
     circles' centres (a cone's apex) with them, those where the removed height may bend. One outside
     the rectangle moves no crossing within it; one where nothing is removed around it whatever the
-    curves' sweeps do (:func:`nothing_removed_near`) bends nothing.
+    curves' sweeps do (:func:`nothing_removed_near`) bends nothing. Where the CL's own curve meets an
+    earlier sweep's, that sweep's curve alone decides: where it is no break point around the meeting,
+    the CL's curve's crossings run on smoothly through it.
     A segment along x = const (a line's sweep along y) crosses no line: its x is a break wherever it
     meets the rectangle. Points within :data:`MERGE_TOL` of the last one kept are one (two curves
     through one point, in round-off apart: a part between them would cost the outer rule all its
@@ -286,6 +288,8 @@ def x_breaks(circles, segments, lo, hi, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, z
     for x, y, a, b in cand:
         if not (lo <= x <= hi and ylo <= y <= yhi):
             continue
+        if a == 0.0 and b >= 1.0 or b == 0.0 and a >= 1.0:  # the CL's own curve meets an earlier sweep's
+            a = b = max(a, b)
         if a >= 1.0 and b >= 1.0 and nothing_removed_near(int(a) - 1, int(b) - 1, x, y, S, P, R, C, CB, PP, NPC, RR,
                                                          zb):
             continue
