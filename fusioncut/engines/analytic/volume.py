@@ -497,26 +497,30 @@ def next_split(lo, hi, val, err, n, budget, rel):
 
 
 @njit(cache=True)
-def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges):
+def _workspace(nb):
+    """The store of an inner integral's parts (:func:`inner_integral`), :data:`_PANELS` of each: ends,
+    values, error estimates, whether each end is flagged, band sums (``nb`` bands) and the change of
+    state their nodes saw. Allocated once a cell: a line's integral fills what it uses."""
+    return (np.empty(_PANELS), np.empty(_PANELS), np.empty(_PANELS), np.empty(_PANELS),
+            np.empty(_PANELS, dtype=np.bool_), np.empty(_PANELS, dtype=np.bool_), np.empty((_PANELS, nb)),
+            np.empty((_PANELS, 4)))
+
+
+@njit(cache=True)
+def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges, work):
     """(integral over y in [ylo, yhi] of the removed height at ``x`` (mm²), to ``budget`` mm² in all
     or ``rel`` of itself, whichever is looser;
     the same integral of the removed height within each band of ``edges`` (its error not controlled
-    on its own: it shares the whole integral's nodes))."""
+    on its own: it shares the whole integral's nodes)). ``work``: the parts' store
+    (:func:`_workspace`), reused from line to line."""
     pts, owners, rims = crossings_at_x(x, circles, segments, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb)
     pts, live, rim = _with_kinks(x, pts, owners, rims, S, P, R, C, CB, PP, NPC, RR, zb, zt)
-    nb = max(edges.shape[0] - 1, 0)
-    lo = np.empty(_PANELS)
-    hi = np.empty(_PANELS)
-    val = np.empty(_PANELS)
-    err = np.empty(_PANELS)
-    ra = np.empty(_PANELS, dtype=np.bool_)
-    rb = np.empty(_PANELS, dtype=np.bool_)
-    bands = np.zeros((_PANELS, nb))
-    changes = np.empty((_PANELS, 4))
+    lo, hi, val, err, ra, rb, bands, changes = work
     n = 0
     for p in range(pts.shape[0] - 1):
         if live[p] and n < _PANELS:
             lo[n], hi[n], ra[n], rb[n] = pts[p], pts[p + 1], rim[p], rim[p + 1]
+            bands[n] = 0.0
             val[n], err[n] = _gk_y(x, lo[n], hi[n], ra[n], rb[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n],
                                    changes[n])
             n += 1
@@ -539,6 +543,7 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
         lo[n], hi[n], ra[n], rb[n] = m, b, at_kink, rb[k]
         rb[k] = at_kink
         bands[k] = 0.0
+        bands[n] = 0.0
         val[k], err[k] = _gk_y(x, a, m, ra[k], rb[k], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[k],
                                changes[k])
         val[n], err[n] = _gk_y(x, m, b, ra[n], rb[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, bands[n],
@@ -548,7 +553,7 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
 
 
 @njit(cache=True)
-def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges, kb):
+def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges, kb, work):
     k = 0.0
     g = 0.0
     m = 0.0
@@ -556,7 +561,7 @@ def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt
         u, wk, wg = _node(i)
         x, w = _smooth(a, b, u)
         v, vb = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel,
-                               edges)
+                               edges, work)
         f = v * w
         k += wk * f
         g += wg * f
@@ -657,12 +662,13 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
     val = np.empty(_PANELS)
     err = np.empty(_PANELS)
     bands = np.zeros((_PANELS, nb))
+    work = _workspace(nb)
     n = 0
     for p in range(xs.shape[0] - 1):
         if xs[p + 1] - xs[p] > 0.0 and n < _PANELS:
             lo[n], hi[n] = xs[p], xs[p + 1]
             val[n], err[n] = _gk_x(lo[n], hi[n], ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt,
-                                   inner, 0.1 * rel, edges, bands[n])
+                                   inner, 0.1 * rel, edges, bands[n], work)
             n += 1
     while n < _PANELS:
         k = next_split(lo, hi, val, err, n, budget, 0.9 * rel)
@@ -673,9 +679,9 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
         hi[k] = m
         bands[k] = 0.0
         val[k], err[k] = _gk_x(a, m, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner,
-                               0.1 * rel, edges, bands[k])
+                               0.1 * rel, edges, bands[k], work)
         lo[n], hi[n] = m, b
         val[n], err[n] = _gk_x(m, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner,
-                               0.1 * rel, edges, bands[n])
+                               0.1 * rel, edges, bands[n], work)
         n += 1
     return val[:n].sum(), bands[:n].sum(axis=0)
