@@ -49,9 +49,9 @@ def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
     than :data:`ZERO_MARGIN`, the CL's (or the bottom: nothing is removed around) or ``j``'s or
     ``i``'s own (:func:`_near_lower`: that sweep gives the least lower surface nowhere around, so
     where it jumps or bends the least one does not, and its curve is no break point there either:
-    the other curve's crossings keep their order through the meeting). All those surfaces are continuous there, so each inequality
-    holds around the point. The CL's closed-form floor decides first, its surface only where that
-    does not."""
+    the other curve's crossings keep their order through the meeting). All those surfaces are
+    continuous there (or jump up), so each inequality holds around the point. The CL's closed-form
+    floor decides first, its surface only where that does not."""
     own = sweep_floor(S, P, R, x, y, 0.0)  # the CL's lower surface is at least this; inf outside it
     if own == math.inf:
         return True
