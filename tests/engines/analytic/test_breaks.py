@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fusioncut.engines.analytic.breaks import boundary_curves, crossings_at_x, nothing_removed_near, x_breaks
 from fusioncut.engines.analytic.profile import lower_profile
@@ -112,3 +113,31 @@ def test_the_engines_cached_curves_are_the_curves_of_its_rows():
                                [rim_radius(pc) for pc in pieces])
         got = engine._curves(sub, P, NP)
         assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+
+
+def test_a_ramps_edge_above_a_lower_pass_is_no_break_point():
+    """The CL 3 mm deep along y = 0; a ramp along y = -4 from 0.5 down to 3.5 mm deep (its closed-form
+    floor, the lowest tip, 3.5 deep); the last pass 2.5 mm deep along y = -2. Where the ramp's edge
+    (y = -1) runs inside the last pass and the ramp's own surface there is above the last pass's (x < 10),
+    the ramp gives the material's top nowhere near and its edge parts nothing, though its floor lies below
+    the last pass; where the ramp has gone below the last pass (x = 15), its edge parts the line. Dropping
+    those break points moves no volume: the adaptive integral over x break points with them added agrees."""
+    from fusioncut.engines.analytic.volume import removed_volume
+
+    own = line_row((-20, 0, -3), (20, 0, -3), 0)
+    ramp, last = line_row((-20, -4, -0.5), (20, -4, -3.5), 0), line_row((-20, -2, -2.5), (20, -2, -2.5), 0)
+    C, CB, circles, segments = _case(own, ramp, last)
+    args = (own, FLAT.pieces, FLAT.radius, C, CB, PP, NPC, RR, -10.0)
+    assert nothing_removed_near(0, 0, 0.0, -1.0, *args)  # the ramp at -2.0 there, the last pass at -2.5
+    assert nothing_removed_near(0, 0, -10.0, -1.0, *args)
+    assert not nothing_removed_near(0, 0, 15.0, -1.0, *args)  # the ramp at -3.125: it gives h there
+    pts, owners, _ = crossings_at_x(0.0, circles, segments, -10.0, 10.0, *args)
+    assert 1.0 not in owners.tolist()
+    pts, owners, _ = crossings_at_x(15.0, circles, segments, -10.0, 10.0, *args)
+    assert pts[owners == 1.0].tolist() == [-1.0]
+    xs = x_breaks(circles, segments, -5.0, 16.0, -3.5, 3.5, *args)
+    more = np.unique(np.concatenate([xs, np.linspace(-5.0, 16.0, 8)]))
+    edges = np.zeros(0)
+    v, _ = removed_volume(xs, -3.5, 3.5, circles, segments, *args[:-1], -10.0, 0.0, 1e-12, 1e-12, edges)
+    w, _ = removed_volume(more, -3.5, 3.5, circles, segments, *args[:-1], -10.0, 0.0, 1e-12, 1e-12, edges)
+    assert v > 10.0 and v == pytest.approx(w, rel=1e-10)
