@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-_GOLDEN = 0.6180339887498949
+GOLDEN = 0.6180339887498949
 # the arcs' windows of tool positions (.sweeps, .vertical) are sampled at ARC_STEP rad at most and each
 # sampled local minimum refined until the bracket is T_TOL of its first width; BRENT_STEPS bounds the
 # steps (the golden ones alone reach T_TOL in under 50)
@@ -54,7 +54,7 @@ def brent_next(st):
                 d = tol if x < m else -tol
     if golden:
         e = (a - x) if x >= m else (b - x)
-        d = (1.0 - _GOLDEN) * e
+        d = (1.0 - GOLDEN) * e
     st[_D], st[_E] = d, e
     return x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
 

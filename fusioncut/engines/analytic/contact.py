@@ -44,7 +44,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.brent import _GOLDEN
+from fusioncut.engines.analytic.brent import GOLDEN
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, relevant_sweeps
 from fusioncut.engines.analytic.polar import ring_breaks
 from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope
@@ -502,18 +502,18 @@ def slice_margin(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart
             continue  # inside a plateau: its ends are refined
         a = ts[max(i - 1, 0)]
         b = ts[min(i + 1, n)]
-        c = b - _GOLDEN * (b - a)
-        d = a + _GOLDEN * (b - a)
+        c = b - GOLDEN * (b - a)
+        d = a + GOLDEN * (b - a)
         fc = _margin_at(c, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
         fd = _margin_at(d, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
         for _ in range(48):
             if fc >= fd:
                 b, d, fd = d, c, fc
-                c = b - _GOLDEN * (b - a)
+                c = b - GOLDEN * (b - a)
                 fc = _margin_at(c, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
             else:
                 a, c, fc = c, d, fd
-                d = a + _GOLDEN * (b - a)
+                d = a + GOLDEN * (b - a)
                 fd = _margin_at(d, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems)
         t = c if fc >= fd else d
         v = max(fc, fd)

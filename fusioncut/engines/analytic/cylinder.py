@@ -38,7 +38,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.brent import _GOLDEN
+from fusioncut.engines.analytic.brent import GOLDEN
 from fusioncut.engines.analytic.contact import beside_walls, front_limits
 from fusioncut.engines.analytic.polar import _wrap, ring_breaks
 from fusioncut.engines.analytic.sweeps import LINE, end_velocity, sweep_lower
@@ -195,17 +195,17 @@ def side_range(S, P, R, z_lo, z_hi, C, CB, PP, NPC, RR, stock, eps, n_scan, circ
         if hs[i] == -math.inf or hs[i] <= floor:
             continue
         a, b = ts[max(i - 1, 0)], ts[min(i + 1, n)]
-        c, d = b - _GOLDEN * (b - a), a + _GOLDEN * (b - a)
+        c, d = b - GOLDEN * (b - a), a + GOLDEN * (b - a)
         fc = _high(c, S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
         fd = _high(d, S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
         for _ in range(48):
             if fc >= fd:
                 b, d, fd = d, c, fc
-                c = b - _GOLDEN * (b - a)
+                c = b - GOLDEN * (b - a)
                 fc = _high(c, S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
             else:
                 a, c, fc = c, d, fd
-                d = a + _GOLDEN * (b - a)
+                d = a + GOLDEN * (b - a)
                 fd = _high(d, S, P, R, floor, cap, C, CB, PP, NPC, RR, stock, eps)
         best = max(best, fc, fd)
     if best <= low:

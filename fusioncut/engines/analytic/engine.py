@@ -433,11 +433,12 @@ class AnalyticEngine:
             scanned: dict[int, list[tuple[float, float]]] = {}
             for z, active in heights:
                 band = _band(row[6] + z, bounds) if banded and active else None
-                if band is None or band not in scanned:
-                    found = _arcs_at(args, z) if active else []
-                    if band is not None:
-                        scanned[band] = found
-                arcs.append(scanned[band] if band is not None else found)
+                if band is None:
+                    arcs.append(_arcs_at(args, z) if active else [])
+                    continue
+                if band not in scanned:
+                    scanned[band] = _arcs_at(args, z)
+                arcs.append(scanned[band])
             t3 = time.perf_counter()
             timings["contact"] = (t3 - t2) * 1e3
             flute_area = shank_area = 0.0
