@@ -50,6 +50,8 @@ from fusioncut.engines.analytic.vertical import is_vertical
 
 DOMINANCE_MOST = 48  # sweeps: a caller that quarters a cell left with more passes this as relevant_sweeps' `most`
 # (the O(n²) search for dominated sweeps is then left to the quarters)
+BOX_SLACK = 1e-9  # mm: how far a held footprint's box may reach beyond its holder's in _undominated's
+# pre-test (the boxes are rounded; the test proper is _holds)
 HOLD_TOL = 1e-12  # mm: how far a held sweep's path may reach beyond its holder's in held_below (the
 # rounding of a CL piece's radius, of a merged circle's turns)
 
@@ -147,6 +149,11 @@ def cell_floor(S, P, R, x0, y0, x1, y1, eps):
     widened by ``eps``."""
     if S[0] == OUTSIDE:
         return S[3] if _farthest_corner(x0, y0, x1, y1, S[7], S[8]) >= S[9] - eps else math.inf
+    if S[0] != ARC:  # a line's (a vertical arc's) footprint lies within its ends' box widened by R
+        reach = R + eps
+        if (min(S[1], S[4]) - reach > x1 or max(S[1], S[4]) + reach < x0 or min(S[2], S[5]) - reach > y1
+                or max(S[2], S[5]) + reach < y0):
+            return math.inf
     d = path_distance(S, x0, y0, x1, y1)
     if d > R + eps:
         return math.inf
@@ -194,6 +201,9 @@ def cell_ceiling(S, P, R, x0, y0, x1, y1):
             if far <= R:
                 best = min(best, ez + profile_height(P, far))
         return best
+    if (x0 < min(S[1], S[4]) - R or x1 > max(S[1], S[4]) + R or y0 < min(S[2], S[5]) - R
+            or y1 > max(S[2], S[5]) + R):
+        return math.inf  # a corner beyond the footprint's box
     level_flat = S[3] == S[6] and is_flat(P)  # its lower surface is S[3] all over its footprint
     top = -math.inf
     for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
@@ -313,8 +323,12 @@ def _undominated(C, PP, NPC, RR, keep, floors):
     docstring); of two equal ones the later is left out."""
     n = C.shape[0]
     top = np.empty(n)
+    box = np.empty((n, 4))
     for j in range(n):
         top[j] = _top(C, j, PP, NPC, RR)
+        r = RR[int(C[j, 12])]
+        box[j, 0], box[j, 1] = min(C[j, 1], C[j, 4]) - r, min(C[j, 2], C[j, 5]) - r
+        box[j, 2], box[j, 3] = max(C[j, 1], C[j, 4]) + r, max(C[j, 2], C[j, 5]) + r
     out = keep.copy()
     by_top = np.argsort(top)
     for j in range(n):
@@ -328,6 +342,9 @@ def _undominated(C, PP, NPC, RR, keep, floors):
                 continue
             if top[i] == floors[j] and top[j] == top[i] and i > j:
                 continue  # equal ones: the earlier is the one kept
+            if (box[i, 0] > box[j, 0] + BOX_SLACK or box[i, 1] > box[j, 1] + BOX_SLACK
+                    or box[i, 2] < box[j, 2] - BOX_SLACK or box[i, 3] < box[j, 3] - BOX_SLACK):
+                continue  # a footprint holding another holds its box
             ki = int(C[i, 12])
             if _holds(C[i], RR[ki], C[j], RR[kj]):
                 out[j] = False
