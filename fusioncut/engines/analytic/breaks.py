@@ -23,7 +23,8 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.sweeps import ARC, OUTSIDE, sweep_floor, sweep_lower
+from fusioncut.engines.analytic.profile import corner_radii, profile_radius, rim_radius
+from fusioncut.engines.analytic.sweeps import ARC, NCOL, OUTSIDE, sweep_floor, sweep_lower
 
 ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
 # for it to be no break point (nothing_removed_near)
@@ -119,37 +120,108 @@ def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]],
     outside its circle; ``owner`` is the sweep's index in ``rows``; ``rim`` is 1 on the curves at
     ``rims[i]`` (:func:`.profile.rim_radius`, nan: none) that bound the footprint, where the lower
     surface rises like the square root of the distance (a line's end circles and sides, an arc's
-    circles about its centre and its ends' circles), else 0."""
-    circles: list[tuple[float, ...]] = []
-    segments: list[tuple[float, ...]] = []
-    if rims is None:
-        rims = [math.nan] * len(rows)
-    for owner, (row, radii, rim) in enumerate(zip(rows, radii_of, rims)):
+    circles about its centre and its ends' circles), else 0. :func:`curves_at` with the radii as lists."""
+    rows = np.asarray(rows, dtype=np.float64).reshape(-1, NCOL)
+    width = max((len(r) for r in radii_of), default=0)
+    radii = np.zeros((len(radii_of), max(width, 1)))
+    for i, r in enumerate(radii_of):
+        radii[i, :len(r)] = r
+    counts = np.array([len(r) for r in radii_of], dtype=np.int64)
+    rim = np.full(len(rows), math.nan) if rims is None else np.array(rims, dtype=np.float64)
+    return curves_at(rows, radii, counts, rim)
+
+
+@njit(cache=True)
+def curves_at(rows, radii, counts, rims):
+    """:func:`boundary_curves` of ``rows`` at the radii ``radii[i, :counts[i]]`` (mm) each, ``rims[i]``
+    the radius of row ``i``'s rim curves (nan: none), in the same order: per row, per radius, its ends'
+    circles, then a line's (a vertical arc's) two sides or an arc's circles about its centre (outer,
+    then inner where it has one) and its two end radii."""
+    nc = ns = 0
+    for i in range(rows.shape[0]):
+        row = rows[i]
         if row[0] == OUTSIDE:
-            circles.append((row[7], row[8], row[9], owner, 0.0))
+            nc += 1
+            continue
+        for m in range(counts[i]):
+            nc += 2
+            if row[0] != ARC:
+                if math.hypot(row[4] - row[1], row[5] - row[2]) > 0.0:
+                    ns += 2
+            else:
+                nc += 2 if row[9] > radii[i, m] else 1
+                ns += 2
+    circles = np.empty((nc, 5))
+    segments = np.empty((ns, 6))
+    c = g = 0
+    for i in range(rows.shape[0]):
+        row = rows[i]
+        if row[0] == OUTSIDE:
+            circles[c, 0], circles[c, 1], circles[c, 2], circles[c, 3], circles[c, 4] = row[7], row[8], row[9], i, 0.0
+            c += 1
             continue
         x0, y0, x1, y1 = row[1], row[2], row[4], row[5]
-        for r in radii:
-            edge = 1.0 if r == rim else 0.0
-            circles += [(x0, y0, r, owner, edge), (x1, y1, r, owner, edge)]
+        for m in range(counts[i]):
+            r = radii[i, m]
+            edge = 1.0 if r == rims[i] else 0.0
+            for cx, cy in ((x0, y0), (x1, y1)):
+                circles[c, 0], circles[c, 1], circles[c, 2], circles[c, 3], circles[c, 4] = cx, cy, r, i, edge
+                c += 1
             if row[0] != ARC:  # a line, or a vertical arc: its XY path is the segment between its ends
                 ux, uy = x1 - x0, y1 - y0
                 n = math.hypot(ux, uy)
                 if n > 0:
                     nx, ny = -uy / n * r, ux / n * r
-                    segments += [(x0 + nx, y0 + ny, x1 + nx, y1 + ny, owner, edge),
-                                 (x0 - nx, y0 - ny, x1 - nx, y1 - ny, owner, edge)]
+                    for side in (1.0, -1.0):
+                        segments[g, 0], segments[g, 1] = x0 + side * nx, y0 + side * ny
+                        segments[g, 2], segments[g, 3] = x1 + side * nx, y1 + side * ny
+                        segments[g, 4], segments[g, 5] = i, edge
+                        g += 1
             else:
                 cx, cy, rho, a0, sw = row[7], row[8], row[9], row[10], row[11]
-                circles.append((cx, cy, rho + r, owner, edge))
+                circles[c, 0], circles[c, 1], circles[c, 2], circles[c, 3], circles[c, 4] = cx, cy, rho + r, i, edge
+                c += 1
                 if rho > r:
-                    circles.append((cx, cy, rho - r, owner, edge))
+                    circles[c, 0], circles[c, 1], circles[c, 2], circles[c, 3] = cx, cy, rho - r, i
+                    circles[c, 4] = edge
+                    c += 1
+                lo = max(rho - r, 0.0)
                 for a in (a0, a0 + sw):
                     ca, sa = math.cos(a), math.sin(a)
-                    lo = max(rho - r, 0.0)
-                    segments.append((cx + lo * ca, cy + lo * sa, cx + (rho + r) * ca, cy + (rho + r) * sa, owner,
-                                     0.0))
-    return (np.array(circles, dtype=np.float64).reshape(-1, 5), np.array(segments, dtype=np.float64).reshape(-1, 6))
+                    segments[g, 0], segments[g, 1] = cx + lo * ca, cy + lo * sa
+                    segments[g, 2], segments[g, 3] = cx + (rho + r) * ca, cy + (rho + r) * sa
+                    segments[g, 4], segments[g, 5] = i, 0.0
+                    g += 1
+    return circles, segments
+
+
+@njit(cache=True)
+def sweep_curves(rows, PP, NPC, zb, zt):
+    """:func:`boundary_curves` of the sweeps ``rows`` (tool tables ``PP``, ``NPC``) at their break radii:
+    ``R`` and the profile's corners (:func:`.profile.corner_radii`); for a level sweep also where it
+    crosses the heights ``zb`` and ``zt`` (mm: the stock's bottom and top), where the removed height
+    bends. Rims at :func:`.profile.rim_radius`; a stock's outside gives its circle."""
+    n = rows.shape[0]
+    radii = np.zeros((n, PP.shape[1] + 2))
+    counts = np.zeros(n, dtype=np.int64)
+    rims = np.full(n, math.nan)
+    for i in range(n):
+        if rows[i, 0] == OUTSIDE:
+            continue
+        k = int(rows[i, 12])
+        P = PP[k, :NPC[k]]
+        corners = corner_radii(P)
+        c = corners.shape[0]
+        radii[i, :c] = corners
+        if rows[i, 3] == rows[i, 6]:
+            for level in (zb, zt):
+                r = profile_radius(P, level - rows[i, 3])
+                if 0 < r < P[P.shape[0] - 1, 2]:
+                    radii[i, c] = r
+                    c += 1
+        counts[i] = c
+        rims[i] = rim_radius(P)
+    return curves_at(rows, radii, counts, rims)
 
 
 @njit(cache=True)

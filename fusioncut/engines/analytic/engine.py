@@ -69,7 +69,7 @@ from pathlib import Path
 import numpy as np
 
 from fusioncut.engines.analytic.area import Shape, contact_area
-from fusioncut.engines.analytic.breaks import boundary_curves, x_breaks
+from fusioncut.engines.analytic.breaks import boundary_curves, sweep_curves, x_breaks
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below
 from fusioncut.engines.analytic.contact import N_SCAN, N_TOUCH, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.cylinder import side_area, side_range
@@ -78,8 +78,8 @@ from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, i
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
 from fusioncut.engines.analytic.polar import polar_volume
-from fusioncut.engines.analytic.profile import (LowerProfile, corner_radii, lower_profile, profile_height,
-                                                profile_radius, profile_radius_slope, rim_radius, upper_parts)
+from fusioncut.engines.analytic.profile import (LowerProfile, lower_profile, profile_height, profile_radius,
+                                                profile_radius_slope, upper_parts)
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row, vertical_row
 from fusioncut.engines.analytic.volume import removed_volume, rough_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod
@@ -107,7 +107,6 @@ SIDE_REL = 1e-9  # a flat end mill's side contact area's tolerance, relative (.c
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 log = logging.getLogger("fusioncut.analytic")
 BAND_TOL = 1e-6  # mm: a slice this close to a height where material may begin or end is scanned on its own
-CURVE_CACHE = 100_000  # sweeps whose boundary curves are kept (a few hundred bytes each)
 STATE = "state.json"  # in a checkpoint folder: the next CL (what the runner's tests and people read)
 SWEEPS = "ipw-sweeps.npz"  # the engine state; named like the B-Rep engine's IPW files so that a
 # fresh run clears it with them
@@ -160,8 +159,6 @@ class AnalyticEngine:
     _saved_sweeps: np.ndarray | None = field(default=None, init=False, repr=False)
     # the CLs indexed, in order, with their footprint boxes (.fallback builds a local workpiece of them)
     _done: list[tuple[CL, tuple[float, float, float, float]]] = field(default_factory=list, init=False, repr=False)
-    # each sweep's boundary curves (owner 0) by its row and profile: a sweep meets many cells of many CLs
-    _curve_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, init=False, repr=False)
 
     @property
     def kind(self) -> EngineKind:
@@ -199,7 +196,6 @@ class AnalyticEngine:
         self._tools = ProfileTable()
         self._saved_sweeps = None
         self._done = []
-        self._curve_cache = {}
 
     @property
     def ipw(self) -> None:
@@ -499,26 +495,9 @@ class AnalyticEngine:
         return contact_area(lambda z: _width(args, z), part.profile.pieces, *z_range, breaks)[0]
 
     def _curves(self, rows: np.ndarray, P: np.ndarray, NP: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`.breaks.boundary_curves` of the sweeps ``rows`` (tool tables ``P``, ``NP``), each sweep's
-        taken from the cache where it was made before (the curves in the same order, their owners
-        renumbered)."""
-        parts = []
-        for r in rows:
-            pc = P[int(r[12]), :NP[int(r[12])]]
-            key = r.tobytes() + pc.tobytes()
-            got = self._curve_cache.get(key)
-            if got is None:
-                got = boundary_curves(r[None, :], [_break_radii(r, pc, (self.stock[2], self.stock[5]))],
-                                      [rim_radius(pc)])
-                if len(self._curve_cache) >= CURVE_CACHE:
-                    self._curve_cache.clear()  # a bound on memory: the next cells fill it again
-                self._curve_cache[key] = got
-            parts.append(got)
-        circles = np.concatenate([c for c, _ in parts])
-        segments = np.concatenate([g for _, g in parts])
-        circles[:, 3] = np.repeat(np.arange(len(parts), dtype=np.float64), [len(c) for c, _ in parts])
-        segments[:, 4] = np.repeat(np.arange(len(parts), dtype=np.float64), [len(g) for _, g in parts])
-        return circles, segments
+        """:func:`.breaks.sweep_curves` of the sweeps ``rows`` (tool tables ``P``, ``NP``) about the stock's
+        bottom and top."""
+        return sweep_curves(rows, P, NP, self.stock[2], self.stock[5])
 
     def _end_args(self, part: PartSweep, parts: list[PartSweep], C: np.ndarray, CB: np.ndarray
                   ) -> tuple[tuple, np.ndarray]:
@@ -727,22 +706,6 @@ def _area_breaks(shaping: np.ndarray, PP: np.ndarray, NPC: np.ndarray, top: floa
         pieces = PP[k, :NPC[k]]
         out.update(float(r[3] + profile_height(pieces, d) - ez) for d in (0.0, *pieces[:, 2]))
     return sorted(out)
-
-
-def _break_radii(row: np.ndarray, pieces: np.ndarray, levels: tuple[float, float]) -> tuple[float, ...]:
-    """Radii (mm) about a sweep's path where its lower surface jumps or bends: R and the profile's
-    corners (:func:`.profile.corner_radii`); for a level sweep also where it crosses the heights
-    ``levels`` (the stock's bottom and top), where the removed height bends. None for a stock's
-    outside (:func:`.breaks.boundary_curves` takes its circle)."""
-    if row[0] == OUTSIDE:
-        return ()
-    out = list(corner_radii(pieces))
-    if row[3] == row[6]:
-        for level in levels:
-            r = profile_radius(pieces, level - row[3])
-            if 0 < r < pieces[-1, 2]:
-                out.append(float(r))
-    return tuple(out)
 
 
 def _vertical_sweep_row(move: ArcMove, R: float, tool_index: int

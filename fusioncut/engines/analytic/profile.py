@@ -139,37 +139,43 @@ def upper_parts(tool: MillingTool) -> tuple[UpperPart, ...]:
     return out
 
 
-def _piece_slope(piece: np.ndarray, d: float) -> float:
+@njit(cache=True, inline="always")
+def _piece_slope(piece, d):
     """The slope of one piece's ``f`` at ``d`` (inf where an arc stands vertical)."""
     if piece[0] == LINE:
-        return float(piece[4])
+        return piece[4]
     u = d - piece[3]
     s = piece[5] * piece[5] - u * u
     return u / math.sqrt(s) if s > 0.0 else math.inf
 
 
-def corner_radii(pieces: np.ndarray, tol: float = 1e-9) -> tuple[float, ...]:
-    """The radii (mm) where ``f`` has a corner (its slope jumps by more than ``tol``: a chamfer's flat
-    tip meeting its cone, a drill's point) and ``R``, the footprint's edge: where a sweep's lower
-    surface bends or ends. Joints where two pieces meet tangentially (a bull-nose's flat and corner,
-    an APT cutter's corner and side) are left out: ``f`` is continuously differentiable there and
-    only its curvature jumps, which the integrals' adaptive rules take in their stride."""
-    out = []
+@njit(cache=True)
+def corner_radii(pieces, tol=1e-9):
+    """The radii (mm, ascending) where ``f`` has a corner (its slope jumps by more than ``tol``: a
+    chamfer's flat tip meeting its cone, a drill's point) and ``R``, the footprint's edge: where a
+    sweep's lower surface bends or ends. Joints where two pieces meet tangentially (a bull-nose's
+    flat and corner, an APT cutter's corner and side) are left out: ``f`` is continuously
+    differentiable there and only its curvature jumps, which the integrals' adaptive rules take in
+    their stride."""
+    out = np.empty(pieces.shape[0])
+    n = 0
     for i in range(pieces.shape[0] - 1):
-        d = float(pieces[i, 2])
+        d = pieces[i, 2]
         if d > 0 and abs(_piece_slope(pieces[i + 1], d) - _piece_slope(pieces[i], d)) > tol:
-            out.append(d)
-    out.append(float(pieces[-1, 2]))
-    return tuple(out)
+            out[n] = d
+            n += 1
+    out[n] = pieces[pieces.shape[0] - 1, 2]
+    return out[:n + 1]
 
 
-def rim_radius(pieces: np.ndarray, tol: float = 1e-9) -> float:
+@njit(cache=True)
+def rim_radius(pieces, tol=1e-9):
     """``R`` where ``f`` ends standing vertical (a ball's or bull-nose's corner arc reaching its
     rightmost point there: a sweep's lower surface then rises like the square root of the distance
     to its footprint's edge), else nan (a flat bottom or a cone meeting the wall at an angle)."""
-    last = pieces[-1]
+    last = pieces[pieces.shape[0] - 1]
     if last[0] == ARC and abs(last[3] + last[5] - last[2]) <= tol * max(1.0, last[2]):
-        return float(last[2])
+        return last[2]
     return math.nan
 
 

@@ -83,36 +83,39 @@ def test_x_breaks_keep_what_meets_the_cell_and_a_wall_along_y_through_it():
     assert xs.tolist() == [-2.0, 1.0, 7.0, 10.0]
 
 
-def test_the_engines_cached_curves_are_the_curves_of_its_rows():
-    """The engine keeps each sweep's boundary curves; a cell's curves, however its rows are ordered and
-    whether from the cache or not, are those :func:`boundary_curves` gives them (owners renumbered)."""
+def test_a_sweeps_curves_are_at_its_radius_its_corners_and_where_a_level_sweep_crosses_the_stocks_faces():
+    """:func:`sweep_curves` in a stock from z = -10 to 0: a flat end mill (R 3) has curves at R only; a
+    ball end mill (R 2) moved level 1 mm deep also where its surface crosses the stock's top, at
+    sqrt(R² - (R - 1)²) = sqrt(3) (no rim; R is its rim), and moved down a ramp at R only; a chamfer mill
+    (tip radius 1 under a 45° cone to R 4) 1 mm deep at its tip's corner, R and 2 (the top). Each row's curves come in
+    :func:`boundary_curves`' order, owned by the row's index."""
     import math
 
-    from fusioncut.engines.analytic.engine import AnalyticEngine, _break_radii
-    from fusioncut.engines.analytic.profile import rim_radius
+    from fusioncut.engines.analytic.breaks import sweep_curves
     from fusioncut.engines.analytic.sweeps import arc_row
-    from fusioncut.engines.base import EngineOptions
-    from fusioncut.model import BallEndMill, BoxStock
+    from fusioncut.model import BallEndMill, ChamferMill
 
-    engine = AnalyticEngine(EngineOptions())
-    engine.start(BoxStock((-20, -20, -10), (20, 20, 0)))
-    profiles = [lower_profile(FlatEndMill(6, 20)), lower_profile(BallEndMill(4, 20))]
-    P = np.zeros((2, max(p.pieces.shape[0] for p in profiles), 6))
+    profiles = [FLAT, lower_profile(BallEndMill(4, 20)), lower_profile(ChamferMill(8, 20, taper_angle=45,
+                                                                                  tip_diameter=2))]
+    P = np.zeros((3, max(p.pieces.shape[0] for p in profiles), 6))
     for i, p in enumerate(profiles):
         P[i, :p.pieces.shape[0]] = p.pieces
     NP = np.array([p.pieces.shape[0] for p in profiles])
-    rng = np.random.default_rng(2)
-    rows = [line_row((*rng.uniform(-9, 9, 2), -1.0), (*rng.uniform(-9, 9, 2), rng.uniform(-3, 0)), i % 2)
-            for i in range(6)]
-    rows += [arc_row((3.0, 0.0, -2.0), (0.0, 3.0, -2.0), (0.0, 0.0), 3.0, 0.0, math.pi / 2, 1)]
-    rows = np.array(rows)
-    for order in ([0, 1, 2, 3, 4, 5, 6], [6, 2, 0, 5], [3, 3, 1], [4]):
-        sub = rows[order]
-        pieces = [P[int(r[12]), :NP[int(r[12])]] for r in sub]
-        want = boundary_curves(sub, [_break_radii(r, pc, (-10.0, 0.0)) for r, pc in zip(sub, pieces)],
-                               [rim_radius(pc) for pc in pieces])
-        got = engine._curves(sub, P, NP)
-        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    rows = np.array([line_row((0, 0, -1), (5, 0, -1), 0), line_row((0, 0, -1), (5, 0, -1), 1),
+                     line_row((0, 0, -1), (5, 0, -3), 1), arc_row((3, 0, -1), (0, 3, -1), (0, 0), 3.0, 0.0,
+                                                                  math.pi / 2, 1),
+                     line_row((0, 0, -1), (0, 5, -1), 2)])
+    want_radii = [(3.0,), (2.0, math.sqrt(3.0)), (2.0,), (2.0, math.sqrt(3.0)), (1.0, 4.0, 2.0)]
+    want_rims = [math.nan, 2.0, 2.0, 2.0, math.nan]
+    circles, segments = sweep_curves(rows, P, NP, -10.0, 0.0)
+    want = boundary_curves(rows, want_radii, want_rims)
+    assert np.allclose(circles, want[0], rtol=0, atol=1e-12) and np.allclose(segments, want[1], rtol=0, atol=1e-12)
+    assert sorted(set(circles[circles[:, 3] == 1, 2].round(12))) == [round(math.sqrt(3.0), 12), 2.0]
+    assert set(circles[circles[:, 4] == 1, 3]) == {1, 2, 3}  # the ball's rims; the flat and chamfer mills have none
+    for k in range(len(rows)):  # each row's curves in boundary_curves' order
+        alone = sweep_curves(rows[k:k + 1], P, NP, -10.0, 0.0)
+        assert np.array_equal(alone[0][:, [0, 1, 2, 4]], circles[circles[:, 3] == k][:, [0, 1, 2, 4]])
+        assert np.array_equal(alone[1][:, [0, 1, 2, 3, 5]], segments[segments[:, 4] == k][:, [0, 1, 2, 3, 5]])
 
 
 def test_a_ramps_edge_above_a_lower_pass_is_no_break_point():
