@@ -57,9 +57,9 @@ BLOCK = 8  # scan angles tested at once (block_state)
 ANGLE_TOL = 1e-10  # rad
 N_TOUCH = 360  # angles per height scanned for the contact's height range (contact_range)
 Z_TOL = 1e-10  # mm: the contact's height range
-CHORD_SHARE = 1 / 16  # contact_range's regula falsi halves the bracket where the chord crosses 0 nearer an end
-# than this share of it and the margin there is not 0: a margin at round-off on the untouched side (a
-# tangential onset, ~1e-13 mm) would pull every chord onto that end
+MARGIN_NOISE = 1e-10  # mm: contact_range's regula falsi halves the bracket where an end's margin is within
+# this of 0 but not 0: below a tangential onset the margin is round-off (~1e-13 mm), flat, and would pull
+# every chord onto that end
 MANY = 12  # a grid cell holding more sweeps leaves out the dominated ones (.cells.relevant_sweeps)
 BESIDE = 1e-7  # rad: a wall's crossing of a slice is scanned this far either side (beside_walls)
 GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
@@ -540,10 +540,9 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
     down from the top (the heights between them are not tested); the change from its untouched
     neighbour is found to :data:`Z_TOL` by the Illinois variant of regula falsi on the slice's
     material margin (:func:`.contact.slice_margin`, positive where it touches), every fourth step
-    a halving so that the bracket shrinks however the margin bends, and a halving too where the
-    chord would cross 0 within :data:`CHORD_SHARE` of an end (a margin flat at round-off below a
-    tangential onset). That is the place where the
-    margin's maximum over the slice, as found, changes sign: where the contact ends on a tangency
+    a halving so that the bracket shrinks however the margin bends, and a halving too where an
+    end's margin is round-off (within :data:`MARGIN_NOISE` of 0, not 0: flat below a tangential
+    onset). That is the place where the margin's maximum over the slice, as found, changes sign: where the contact ends on a tangency
     whose margin peaks as a square root of the angle (a helical bore's last touch of the turn
     before), the peak found to ~1e-12 rad is ~1e-6 mm low, and so is the height."""
     row, pieces, stock = args[0], args[1], args[8]
@@ -585,9 +584,9 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
                 break
             x = 0.5 * (a + b)
             if k % 4 != 3 and math.isfinite(fa) and math.isfinite(fb) and fa != fb:
-                t = fa / (fa - fb)  # where the chord crosses 0, as a share of the bracket
-                if CHORD_SHARE <= t <= 1.0 - CHORD_SHARE or fa == 0.0 or fb == 0.0:  # else it hugs an end: halve
-                    x = min(max(a + t * (b - a), a + 0.25 * Z_TOL), b - 0.25 * Z_TOL)
+                near = min(abs(fa), abs(fb))  # the chord crosses 0 nearest the end of least margin
+                if near == 0.0 or near > MARGIN_NOISE:  # else that margin is round-off: halve
+                    x = min(max(a - fa * (b - a) / (fb - fa), a + 0.25 * Z_TOL), b - 0.25 * Z_TOL)
             fx = margin(x)
             if (fx > 0.0) == (fa > 0.0):
                 a, fa = x, fx

@@ -87,3 +87,26 @@ def test_an_arc_narrower_than_the_scan_step_between_two_walls_is_found():
     for s in last.slices:
         assert len(s.intervals) == 1
         assert s.intervals[0].exit - s.intervals[0].entry == pytest.approx(width, abs=1e-6)
+
+
+@pytest.mark.parametrize("onset", [0.8430017176747031, 0.37, 2.0 / 3.0])
+def test_a_tangential_onset_is_found_by_halving_where_the_margin_below_it_is_round_off(monkeypatch, onset):
+    """Below a ball's tangential onset the slices' margin is round-off, ~1e-13 mm either side of 0 (as on
+    CAMotics bear), above it grows linearly. contact_range finds the onset to its Z_TOL, and halves the
+    bracket there: a regula falsi step would land within ~1e-13 of the round-off end each time (the old
+    rule took ~120 margins; halving from the quarter-mm candidate spacing to 1e-10 takes ~32)."""
+    from fusioncut.engines.analytic import contact
+
+    calls = []
+
+    def margin(row, pieces, R, zs, *rest):
+        calls.append(zs)
+        return zs - onset if zs > onset else -1e-13 * (1.0 + math.sin(1e7 * zs)) - 1e-14
+
+    monkeypatch.setattr(contact, "slice_margin", margin)
+    ball = lower_profile(BallEndMill(6.0, 20.0))
+    row = line_row((0.0, 0.0, -5.0), (10.0, 0.0, -5.0), 0)
+    args = (row, ball.pieces, ball.radius, *([None] * 5), STOCK, *([None] * 4))
+    lo, hi = contact.contact_range(args, 0.0, 4.0, 1.0, [])
+    assert abs(lo - onset) <= contact.Z_TOL and hi == 4.0
+    assert len(calls) <= 50
