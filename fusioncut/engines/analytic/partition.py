@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.cells import relevant_sweeps
+from fusioncut.engines.analytic.cells import cell_ceiling, cell_floor, relevant_sweeps
 from fusioncut.engines.analytic.flat import all_level_flat
 from fusioncut.engines.analytic.polar import held_annuli, polar_applies
 
@@ -33,7 +33,18 @@ ADAPTIVE, FLAT, POLAR = 0, 1, 2  # how a cell is integrated (.volume, .flat, .po
 @njit(cache=True)
 def _cull(x0, y0, x1, y1, rows, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps, most):
     """(whether nothing is removed in the cell, the rows of ``rows`` (indices into ``C``) it keeps, their
-    floors): the rows whose boxes meet the cell, then :func:`.cells.relevant_sweeps` of them."""
+    floors): the rows whose boxes meet the cell, then :func:`.cells.relevant_sweeps` of them. A row whose
+    box holds the cell and whose ceiling over it is at most the CL's own floor there makes the cell empty
+    whatever the others do (relevant_sweeps' cap is at most that ceiling): the rows are first searched for
+    one, latest first (the pass before this one, as a trochoid's return runs inside its last loop), and
+    an empty cell's rows are not kept (nobody reads them)."""
+    own = max(zb, cell_floor(S, P, R, x0, y0, x1, y1, 0.0))
+    for i in range(rows.shape[0] - 1, -1, -1):
+        j = rows[i]
+        if CB[j, 0] <= x0 and CB[j, 2] >= x1 and CB[j, 1] <= y0 and CB[j, 3] >= y1:
+            k = int(C[j, 12])
+            if cell_ceiling(C[j], PP[k, :NPC[k]], RR[k], x0, y0, x1, y1) <= own:
+                return True, rows[:0], np.empty(0)
     meet = np.empty(rows.shape[0], dtype=np.int64)
     m = 0
     for i in range(rows.shape[0]):
