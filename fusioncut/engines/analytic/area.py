@@ -31,8 +31,9 @@ ball's equator, where its sweep's lower surface turns into its wall) the classif
 flickers between them, and W is smooth there.
 Within the parts it is adaptive Gauss-Kronrod (7, 15) with a global error budget
 (QUADPACK's QAG and its error estimate from the two rules and the integrand's spread about its
-mean, as :mod:`.volume`): the part with the largest estimate is halved until the
-estimates add up to ``rel_tol`` of the area, parts reach :data:`MIN_PART`, or :data:`MAX_EVALS`
+mean, as :mod:`.volume`): the part with the largest estimate is halved (or split near the end
+where its last split found its error: :func:`_graded_split`) until the estimates add up to ``rel_tol``
+of the area, parts reach :data:`MIN_PART`, or :data:`MAX_EVALS`
 evaluations of ``W`` are spent (from then on a change of shape no longer splits a part either); the
 estimate left is returned with the area.
 """
@@ -53,6 +54,8 @@ KINK_PART = 1e-5  # the place of a kink of W (a change of what bounds an arc's e
 KINK_SPAN = 1e-5  # parts narrower than this share of their piece are not split at kinks, only at jumps
 MAX_CHANGES = 8  # changes of shape located one after the other between two of a rule's nodes
 CLUSTER = 1e-5  # ... each at least this share of those nodes' spacing past the last
+GRADE = 1 / 8  # a part whose error lies at one end is split this share of its width from that end
+DOMINANT = 8.0  # ... where its last split found one side's error over this many times the other's
 MAX_EVALS = 1500  # evaluations of W(z) one CL's area may take: a bound, not the usual stop (the error estimate)
 _LINE = 0.0
 Shape = tuple[int, tuple[float, ...]]  # the engaged arcs' number and their ends' causes (engine._width)
@@ -122,7 +125,9 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
     and ``breaks`` the heights where ``W`` may jump."""
     if z_hi <= z_lo:
         return 0.0, 0.0
-    parts: list[tuple[float, float, float, float, SurfacePiece]] = []  # (-err, a, b, value, piece)
+    # (-err, a, b, value, end, piece): ``end`` is where the part's error lies, as its last split showed
+    # (-1 at a, 1 at b, 0 not known; _graded_split)
+    parts: list[tuple[float, float, float, float, int, SurfacePiece]] = []
     evals = 0
 
     def at(p: SurfacePiece, u: float) -> tuple[float, Shape]:
@@ -165,11 +170,11 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
             sa = s_hi if a == hi else at(p, a)[1]
         return out
 
-    def add(p: SurfacePiece, a: float, b: float) -> None:
+    def add(p: SurfacePiece, a: float, b: float) -> list[tuple[float, float, float, float, int, SurfacePiece]]:
         """Rule on [a, b], or, where the arcs' shape differs between its nodes, the parts between the
-        changes."""
+        changes: the parts, in order along [a, b], to be put in the heap."""
         if b - a <= MIN_PART:
-            return
+            return []
         n = len(_NODES)
         fk, us, shapes = np.empty(n), np.empty(n), [(0, ())] * n
         for i in range(n):
@@ -193,12 +198,10 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
                 if hi - lo > tol:
                     lo, hi, _ = narrow(p, lo, hi, s_lo, s_hi, max(tol, MIN_PART), kinks)
                     cuts[i] = 0.5 * (lo + hi)
-            for c0, c1 in zip(cuts[:-1], cuts[1:]):
-                add(p, c0, c1)
-            return
+            return [q for c0, c1 in zip(cuts[:-1], cuts[1:]) for q in add(p, c0, c1)]
         k, g = _KRONROD @ fk, _GAUSS @ fk
         resasc = _KRONROD @ np.abs(fk - 0.5 * k)
-        heapq.heappush(parts, (-_error(abs(k - g), resasc), a, b, k, p))
+        return [(-_error(abs(k - g), resasc), a, b, k, 0, p)]
 
     for p in surface_pieces(pieces, z_hi):
         lo = max(p.u0, p.u_of_z(z_lo))
@@ -207,19 +210,36 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
             continue
         cuts = sorted({lo, hi, *(u for u in (p.u_of_z(z) for z in breaks if z_lo < z < z_hi) if lo < u < hi)})
         for a, b in zip(cuts[:-1], cuts[1:]):
-            add(p, a, b)
+            for q in add(p, a, b):
+                heapq.heappush(parts, q)
     while parts:
         total = sum(q[3] for q in parts)
         err = -sum(q[0] for q in parts)
         if err <= rel_tol * abs(total) or evals >= MAX_EVALS:
             return total, err
-        e, a, b, v, p = heapq.heappop(parts)
+        e, a, b, v, end, p = heapq.heappop(parts)
         if b - a <= 2 * MIN_PART:
-            heapq.heappush(parts, (0.0, a, b, v, p))  # as fine as it gets: its estimate is dropped
+            heapq.heappush(parts, (0.0, a, b, v, 0, p))  # as fine as it gets: its estimate is dropped
             if all(q[0] == 0.0 for q in parts):
                 break
             continue
-        m = 0.5 * (a + b)
-        add(p, a, m)
-        add(p, m, b)
+        for q in _graded_split(a, b, end, lambda c0, c1: add(p, c0, c1)):
+            heapq.heappush(parts, q)
     return sum(q[3] for q in parts), -sum(q[0] for q in parts)
+
+
+def _graded_split(a: float, b: float, end: int, rule: Callable[[float, float], list]) -> list:
+    """The parts of [a, b] split once: at the middle, or :data:`GRADE` of the way from the end where
+    its error was found (``end``: -1 at a, 1 at b). Where one side's error is over :data:`DOMINANT`
+    times the other's, its outer end is marked as where its error lies (a near-singularity just
+    beyond a part's end, as where an arc's end runs almost along a slice's circle, is then closed in
+    on geometrically: a halving would take one rule pair per factor 2); a split that finds the
+    error away from the marked end marks nothing."""
+    m = a + GRADE * (b - a) if end < 0 else (b - GRADE * (b - a) if end > 0 else 0.5 * (a + b))
+    left, right = rule(a, m), rule(m, b)
+    e_left, e_right = -sum(q[0] for q in left), -sum(q[0] for q in right)
+    if left and e_left > DOMINANT * e_right and end <= 0:
+        left[0] = (*left[0][:4], -1, left[0][5])
+    elif right and e_right > DOMINANT * e_left and end >= 0:
+        right[-1] = (*right[-1][:4], 1, right[-1][5])
+    return left + right

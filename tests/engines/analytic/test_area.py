@@ -84,3 +84,21 @@ def test_material_blocker_names_the_stock_face_or_the_earlier_sweep():
     assert blocker(25.0, 10.0, -3.0) == -1  # below its floor
     assert [blocker(-1.0, 20.0, -1.0), blocker(25.0, -1.0, -1.0), blocker(25.0, 20.0, -11.0)] == [-2, -3, -4]
     assert [blocker(51.0, 20.0, -1.0), blocker(25.0, 51.0, -1.0), blocker(25.0, 20.0, 1.0)] == [-5, -6, -7]
+
+
+@pytest.mark.parametrize("eps", [1e-3, 1e-4])
+def test_a_near_singularity_beyond_a_parts_end_is_closed_in_on_geometrically(eps):
+    """W(z) = sqrt(z + eps) over z in [0, 1]: a branch point eps below the range's end, as where an arc's
+    end runs almost along the slice's circle. The flank's area R * (2/3) ((1 + eps)^1.5 - eps^1.5) comes
+    to 1e-9, and the splits close in on z = 0 by eighths once a halving has found the error there
+    (halvings alone took 165 and 255 evaluations)."""
+    calls = []
+
+    def width(z: float) -> tuple[float, Shape]:
+        calls.append(z)
+        return float(np.sqrt(z + eps)), (1, ())
+
+    area, err = contact_area(width, FLAT, 0.0, 1.0, [])
+    want = R * (2.0 / 3.0) * ((1.0 + eps) ** 1.5 - eps ** 1.5)
+    assert area == pytest.approx(want, rel=1e-9) and err <= 1e-7 * area
+    assert len(calls) <= 150 if eps == 1e-3 else len(calls) <= 180
