@@ -542,9 +542,10 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
     material margin (:func:`.contact.slice_margin`, positive where it touches), every fourth step
     a halving so that the bracket shrinks however the margin bends, and a halving too where an
     end's margin is round-off (within :data:`MARGIN_NOISE` of 0, not 0: flat below a tangential
-    onset). That is the place where the margin's maximum over the slice, as found, changes sign: where the contact ends on a tangency
-    whose margin peaks as a square root of the angle (a helical bore's last touch of the turn
-    before), the peak found to ~1e-12 rad is ~1e-6 mm low, and so is the height."""
+    onset). That is the place where the margin's maximum over the slice, as found, changes sign:
+    where the contact ends on a tangency whose margin peaks as a square root of the angle (a helical
+    bore's last touch of the turn before), the peak found to ~1e-12 rad is ~1e-6 mm low, and so is
+    the height."""
     row, pieces, stock = args[0], args[1], args[8]
     ez = row[6]
     seen: dict[float, float] = {}
