@@ -5,7 +5,10 @@ box of its footprint ``(x_min, y_min, x_max, y_max)`` (mm, the tool-tip path's X
 the tool's radius ``R``) and the lowest height of its lower surface (the path's lowest tip height,
 mm: every lower profile is >= 0 above the tip). A sweep is registered in every bin its box
 overlaps, so a query for a box meets only the sweeps registered in the bins the box overlaps,
-then keeps those whose own box overlaps it: a point meets only sweeps that can contain it.
+then keeps those whose own box overlaps it: a point meets only sweeps that can contain it. A bin
+holds its rows in a growing array; a query filters its bins' rows by box, height and life as arrays
+and makes the survivors unique last (a bin of an adaptive clearing holds thousands of rows, most of
+them in the query's other bins too).
 
 A sweep that another one along the **same XY path** lies under is **retired**: no query meets it
 again. Two sweeps have the same XY path when their kind, tool part and every column but the heights
@@ -81,7 +84,9 @@ class SweepIndex:
         self.z_low = np.zeros(64)
         self.size = 0
         self.alive = np.ones(64, dtype=bool)  # False: retired (module docstring)
-        self._bins: dict[tuple[int, int], set[int]] = defaultdict(set)
+        # per bin, its rows (a growing array and how much of it is filled); a retired row stays, and
+        # near() leaves it out by ``alive``
+        self._bins: dict[tuple[int, int], list] = {}
         self._everywhere: list[int] = []  # rows met by every query, in no bin (a round bar's outside)
         self._latest: dict[float, int] = {}  # per tool column, its latest row (a CL's parts interleave)
         self._paths: dict[tuple[float, ...], list[int]] = defaultdict(list)  # complete live rows per XY path
@@ -118,7 +123,7 @@ class SweepIndex:
             for i in xs:
                 for j in ys:
                     if i not in old[0] or j not in old[1]:  # the bins the grown box newly covers
-                        self._bins[(i, j)].add(k)
+                        self._bin_add((i, j), k)
             return k
         if k is not None:
             self._complete(k)
@@ -127,8 +132,19 @@ class SweepIndex:
         xs, ys = self._bin_range(box)
         for i in xs:
             for j in ys:
-                self._bins[(i, j)].add(k)
+                self._bin_add((i, j), k)
         return k
+
+    def _bin_add(self, key: tuple[int, int], k: int) -> None:
+        got = self._bins.get(key)
+        if got is None:
+            self._bins[key] = [np.full(8, k, dtype=np.int64), 1]
+            return
+        rows, n = got
+        if n == rows.shape[0]:
+            rows = got[0] = np.concatenate([rows, np.empty(n, dtype=np.int64)])
+        rows[n] = k
+        got[1] = n + 1
 
     def _complete(self, k: int) -> None:
         """Row ``k`` is complete: retire it where a live row along the same XY path lies under it, else
@@ -146,10 +162,6 @@ class SweepIndex:
 
     def _retire(self, k: int) -> None:
         self.alive[k] = False
-        xs, ys = self._bin_range(self.boxes[k])
-        for i in xs:
-            for j in ys:
-                self._bins[(i, j)].discard(k)
 
     def _append(self, row: np.ndarray, box: tuple[float, float, float, float], z_low: float) -> int:
         if self.size == self.rows.shape[0]:
@@ -170,17 +182,19 @@ class SweepIndex:
         if len(xs) * len(ys) > 4 * max(len(self._bins), 1):
             found = np.flatnonzero(self.alive[:self.size])  # a box over most of the grid: scan them all
         else:
-            hits: set[int] = set(self._everywhere)
+            parts = [np.array(self._everywhere, dtype=np.int64)]
             for i in xs:
                 for j in ys:
-                    hits.update(self._bins.get((i, j), ()))
-            found = np.fromiter(sorted(hits), dtype=np.int64, count=len(hits))
+                    got = self._bins.get((i, j))
+                    if got is not None:
+                        parts.append(got[0][:got[1]])
+            found = np.concatenate(parts)  # a row met in several bins comes once per bin: made unique last
         if found.size == 0:
             return found
         b = self.boxes[found]
         keep = ((b[:, 0] <= box[2]) & (b[:, 2] >= box[0]) & (b[:, 1] <= box[3]) & (b[:, 3] >= box[1])
-                & (self.z_low[found] < z_max))
-        return found[keep]
+                & (self.z_low[found] < z_max) & self.alive[found])
+        return np.unique(found[keep])
 
 
 def continues(last: np.ndarray, row: np.ndarray) -> bool:
