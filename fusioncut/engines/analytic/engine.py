@@ -69,7 +69,7 @@ from pathlib import Path
 import numpy as np
 
 from fusioncut.engines.analytic.area import Shape, contact_area
-from fusioncut.engines.analytic.breaks import boundary_curves, sweep_curves, x_breaks
+from fusioncut.engines.analytic.breaks import curves_at, sweep_curves, x_breaks
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below
 from fusioncut.engines.analytic.contact import N_SCAN, N_TOUCH, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.cylinder import side_area, side_range
@@ -519,7 +519,9 @@ class AnalyticEngine:
                           t.counts, t.radii, s[2], s[5], 2 * WALL_EPS)
         near = np.unique(grid[2])
         # the footprints' edges (walls): the boundary curves at each sweep's tool radius
-        walls = boundary_curves(Ce[near], [(t.radii[int(r[12])],) for r in Ce[near]])
+        shaping = Ce[near]
+        walls = curves_at(shaping, t.radii[shaping[:, 12].astype(np.int64)][:, None],
+                          np.ones(len(shaping), dtype=np.int64), np.full(len(shaping), math.nan))
         args = (row, part.profile.pieces, R, Ce, CBe, t.profiles, t.counts, t.radii, np.array(s), WALL_EPS, *grid, *walls)
         return args, near
 
