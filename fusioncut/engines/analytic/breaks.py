@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.profile import joint_radii, profile_radius, rim_radius
+from fusioncut.engines.analytic.profile import corner_radii, profile_radius, rim_radius
 from fusioncut.engines.analytic.sweeps import ARC, NCOL, OUTSIDE, sweep_floor, sweep_lower
 
 ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
@@ -116,7 +116,7 @@ def boundary_curves(rows: np.ndarray, radii_of: list[tuple[float, ...]],
                     rims: list[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Circles (cx, cy, r, owner, rim) and segments (x0, y0, x1, y1, owner, rim) where the lower
     surfaces of the sweeps ``rows`` may jump or bend: for each sweep, at each radius of
-    ``radii_of[i]`` (its tool's R and the radii where its profile changes piece), for a stock's
+    ``radii_of[i]`` (its tool's R and the radii where its profile has a corner), for a stock's
     outside its circle; ``owner`` is the sweep's index in ``rows``; ``rim`` is 1 on the curves at
     ``rims[i]`` (:func:`.profile.rim_radius`, nan: none) that bound the footprint, where the lower
     surface rises like the square root of the distance (a line's end circles and sides, an arc's
@@ -198,7 +198,7 @@ def curves_at(rows, radii, counts, rims):
 @njit(cache=True)
 def sweep_curves(rows, PP, NPC, zb, zt):
     """:func:`boundary_curves` of the sweeps ``rows`` (tool tables ``PP``, ``NPC``) at their break radii:
-    ``R`` and the profile's joints (:func:`.profile.joint_radii`); for a level sweep also where it
+    ``R`` and the profile's corners (:func:`.profile.corner_radii`); for a level sweep also where it
     crosses the heights ``zb`` and ``zt`` (mm: the stock's bottom and top), where the removed height
     bends. Rims at :func:`.profile.rim_radius`; a stock's outside gives its circle."""
     n = rows.shape[0]
@@ -210,9 +210,9 @@ def sweep_curves(rows, PP, NPC, zb, zt):
             continue
         k = int(rows[i, 12])
         P = PP[k, :NPC[k]]
-        joints = joint_radii(P)
-        c = joints.shape[0]
-        radii[i, :c] = joints
+        corners = corner_radii(P)
+        c = corners.shape[0]
+        radii[i, :c] = corners
         if rows[i, 3] == rows[i, 6]:
             for level in (zb, zt):
                 r = profile_radius(P, level - rows[i, 3])

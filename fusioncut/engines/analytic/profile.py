@@ -139,18 +139,30 @@ def upper_parts(tool: MillingTool) -> tuple[UpperPart, ...]:
     return out
 
 
+@njit(cache=True, inline="always")
+def _piece_slope(piece, d):
+    """The slope of one piece's ``f`` at ``d`` (inf where an arc stands vertical)."""
+    if piece[0] == LINE:
+        return piece[4]
+    u = d - piece[3]
+    s = piece[5] * piece[5] - u * u
+    return u / math.sqrt(s) if s > 0.0 else math.inf
+
+
 @njit(cache=True)
-def joint_radii(pieces):
-    """The radii (mm, ascending) where ``f`` changes piece, and ``R``, the footprint's edge: where a
-    sweep's lower surface bends or ends. At a corner (a chamfer's flat tip meeting its cone, a
-    drill's point) its slope jumps; where two pieces meet tangentially (a bull-nose's flat and
-    corner, an APT cutter's corner and side) only its curvature does, and a Gauss rule straddling
-    that converges slowly too: the adaptive rules would halve their parts down towards it."""
+def corner_radii(pieces, tol=1e-9):
+    """The radii (mm, ascending) where ``f`` has a corner (its slope jumps by more than ``tol``: a
+    chamfer's flat tip meeting its cone, a drill's point) and ``R``, the footprint's edge: where a
+    sweep's lower surface bends or ends. Joints where two pieces meet tangentially (a bull-nose's
+    flat and corner, an APT cutter's corner and side) are left out: ``f`` is continuously
+    differentiable there and only its curvature jumps, which the integrals' adaptive rules take in
+    their stride."""
     out = np.empty(pieces.shape[0])
     n = 0
     for i in range(pieces.shape[0] - 1):
-        if pieces[i, 2] > 0:
-            out[n] = pieces[i, 2]
+        d = pieces[i, 2]
+        if d > 0 and abs(_piece_slope(pieces[i + 1], d) - _piece_slope(pieces[i], d)) > tol:
+            out[n] = d
             n += 1
     out[n] = pieces[pieces.shape[0] - 1, 2]
     return out[:n + 1]

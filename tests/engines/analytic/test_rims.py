@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fusioncut.engines.analytic.breaks import boundary_curves
-from fusioncut.engines.analytic.profile import joint_radii, lower_profile, rim_radius
+from fusioncut.engines.analytic.profile import corner_radii, lower_profile, rim_radius
 from fusioncut.engines.analytic.sweeps import arc_row, line_row
 from fusioncut.engines.analytic.volume import _ends_map, _node
 from fusioncut.model.tools import BallEndMill, BullNoseEndMill, ChamferMill, Drill, FlatEndMill, TaperedEndMill
@@ -25,20 +25,20 @@ def test_only_a_profile_ending_in_a_vertical_arc_has_a_rim(tool, rim):
 
 def test_the_rim_curves_are_the_footprints_edges_at_the_rim_radius():
     """A bull-nose's (R 5, corner 2) line and arc: the curves at R (a line's end circles and sides, an arc's
-    circles about its centre and about its ends) are rims; the curves at its tangential joint at 3 and an arc's
-    end radii, where the end tool's disc meets the swept ring, are not; a flat end mill has none."""
+    circles about its centre and about its ends) are rims; its tangential joint at 3 (were it a break radius)
+    and an arc's end radii, where the end tool's disc meets the swept ring, are not; a flat end mill has none."""
     bull = lower_profile(BullNoseEndMill(10, 20, corner_radius=2))
     rows = np.array([line_row((0, 0, 0), (10, 0, -1), 0), arc_row((10, 0, 0), (0, 10, 0), (0, 0), 10.0, 0.0,
                                                                    math.pi / 2, 0)])
     rim = rim_radius(bull.pieces)
-    circles, segments = boundary_curves(rows, [tuple(joint_radii(bull.pieces))] * 2, [rim, rim])
+    circles, segments = boundary_curves(rows, [(3.0, *corner_radii(bull.pieces))] * 2, [rim, rim])
     assert circles.shape[1] == 5 and segments.shape[1] == 6
     assert np.all((circles[:, 4] == 1) == (circles[:, 2] == 5.0) | (circles[:, 2] == 15.0))  # an arc's rho +- R
     assert np.all(circles[circles[:, 2] == 3.0, 4] == 0)
     line_sides, arc_ends = segments[segments[:, 4] == 0], segments[segments[:, 4] == 1]
     assert list(line_sides[:, 5]) == [0, 0, 1, 1] and np.all(arc_ends[:, 5] == 0)
     flat = lower_profile(FlatEndMill(10, 20))
-    circles, segments = boundary_curves(rows[:1], [joint_radii(flat.pieces)], [rim_radius(flat.pieces)])
+    circles, segments = boundary_curves(rows[:1], [corner_radii(flat.pieces)], [rim_radius(flat.pieces)])
     assert not circles[:, 4].any() and not segments[:, 5].any()
 
 
@@ -73,19 +73,3 @@ def test_the_node_map_bends_where_a_square_root_starts_or_lies_just_beyond():
     for ra in (False, True):
         for rb in (False, True):  # every map covers [a, b]: its weights add up to the length
             assert _gk(lambda y: 1.0, a, b, ra, rb)[0] == pytest.approx(b - a, rel=1e-14)
-
-
-@pytest.mark.parametrize("tool, joints", [(BullNoseEndMill(10, 20, corner_radius=2), [3.0, 5.0]),
-                                          (ChamferMill(8, 20, taper_angle=45, tip_diameter=2), [1.0, 4.0]),
-                                          (BallEndMill(6, 20), [3.0]), (FlatEndMill(10, 20), [5.0])])
-def test_a_profiles_joints_tangential_or_not_are_break_radii(tool, joints):
-    """Where a profile changes piece its sweeps' lower surfaces bend (a chamfer's tip meets its cone) or only
-    their curvature jumps (a bull-nose's flat meets its corner tangentially); both part the volume's
-    integrals, as R does: a bull-nose's level line has circles at 3 about its ends."""
-    from fusioncut.engines.analytic.breaks import sweep_curves
-
-    pieces = lower_profile(tool).pieces
-    assert list(joint_radii(pieces)) == pytest.approx(joints, abs=1e-12)
-    circles, _ = sweep_curves(line_row((0, 0, -1), (5, 0, -1), 0)[None, :], pieces[None, :, :],
-                              np.array([pieces.shape[0]]), -10.0, 0.0)
-    assert set(circles[:, 2].round(12)) >= set(np.round(joints, 12))
