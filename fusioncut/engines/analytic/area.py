@@ -57,6 +57,9 @@ CLUSTER = 1e-5  # ... each at least this share of those nodes' spacing past the 
 GRADE = 1 / 8  # a part whose error lies at one end is split this share of its width from that end
 DOMINANT = 8.0  # ... where its last split found one side's error over this many times the other's
 MAX_EVALS = 1500  # evaluations of W(z) one CL's area may take: a bound, not the usual stop (the error estimate)
+TIP_NOISE = 1e-9  # mm above the tip: a slice lower than this is taken as the one at this height. There the slice's
+# circle runs within round-off of the tip's own surface and of a floor level with the tip (a bull-nose's flat meets
+# its corner with zero slope), and its engaged arcs flicker between none and all from one height to the next
 _LINE = 0.0
 Shape = tuple[int, tuple[float, ...]]  # the engaged arcs' number and their ends' causes (engine._width)
 # Gauss-Kronrod (7, 15) on [-1, 1] (:mod:`.volume`'s nodes): the Kronrod nodes, 0 among them, and
@@ -134,7 +137,7 @@ def contact_area(width: Callable[[float], tuple[float, Shape]], pieces: np.ndarr
         nonlocal evals
         evals += 1
         d, z, ds = p.at(u)
-        w, shape = width(z)
+        w, shape = width(max(z, TIP_NOISE))
         return d * ds * w, shape
 
     def narrow(p: SurfacePiece, lo: float, hi: float, s_lo: Shape, s_hi: Shape, tol: float, kinks: bool
