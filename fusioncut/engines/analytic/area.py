@@ -35,7 +35,8 @@ mean, as :mod:`.volume`): the part with the largest estimate is halved (or split
 where its last split found its error: :func:`_graded_split`) until the estimates add up to ``rel_tol``
 of the area, parts reach :data:`MIN_PART`, or :data:`MAX_EVALS`
 evaluations of ``W`` are spent (from then on a change of shape no longer splits a part either); the
-estimate left is returned with the area.
+estimate left is returned with the area. A slice within :data:`TIP_NOISE` of the tip is taken as the one
+at that height: round-off, not the material, decides which of its points are engaged.
 """
 from __future__ import annotations
 
