@@ -104,6 +104,8 @@ FLAT_SWEEPS = 8  # a cell whose sweeps are all level and flat is integrated in c
 # this many, not quartered where a quarter is empty; with more, its quarters cost less (the closed form's parts
 # between curve meetings grow as the square of the curves, and each part's regions with them)
 SIDE_REL = 1e-9  # a flat end mill's side contact area's tolerance, relative (.cylinder)
+AREA_WARN = 1e-6  # relative: a contact area whose error estimate is over this share of it comes with a warning
+# (its rule ran out of evaluations, .area.MAX_EVALS)
 END_GRID = 8  # cells a side of the grid over the tool's square at the CL's end (contact.sweep_grid)
 log = logging.getLogger("fusioncut.analytic")
 BAND_TOL = 1e-6  # mm: a slice this close to a height where material may begin or end is scanned on its own
@@ -441,12 +443,12 @@ class AnalyticEngine:
             warnings: list[str] = []
             wider = upper_parts(tool)
             if z_range is not None:
-                flute_area = self._area(args, near, cut, z_range)
+                flute_area = self._area(args, near, cut, z_range, warnings)
                 # the cutting part taken straight up, as it is swept, up to the first wider part
                 shank = self._range(args, near, cut, tool.flute_length, wider[0].height if wider else math.inf, levels) \
                     if z_range[1] >= tool.flute_length else None
                 if shank is not None:
-                    shank_area = self._area(args, near, cut, shank)
+                    shank_area = self._area(args, near, cut, shank, warnings)
                     warnings += _narrow_neck(tool, profile, shank)
             for i, p in enumerate(parts[1:], 1):
                 # a wider neck or shank touches wherever it meets material, up to the next wider part
@@ -455,7 +457,7 @@ class AnalyticEngine:
                 p_top = wider[i].height - p.height if i < len(wider) else math.inf
                 rng = self._range(p_args, p_near, p, 0.0, p_top, p_levels)
                 if rng is not None:
-                    shank_area += self._area(p_args, p_near, p, rng)
+                    shank_area += self._area(p_args, p_near, p, rng, warnings)
             timings["area"] = (time.perf_counter() - t3) * 1e3
             outcome = CutOutcome(CLStatus.RAPID if move.is_rapid else CLStatus.ENGAGED, removed=removed,
                                  method=SweepMethod.EXACT, timings=timings, z_range=z_range,
@@ -480,19 +482,26 @@ class AnalyticEngine:
             return None if math.isnan(lo) else (float(lo), float(hi))
         return contact_range(args, bottom, top, self.options.slice_height, levels)
 
-    def _area(self, args: tuple, near: np.ndarray, part: PartSweep, z_range: tuple[float, float]) -> float:
+    def _area(self, args: tuple, near: np.ndarray, part: PartSweep, z_range: tuple[float, float],
+              warnings: list[str]) -> float:
         """The contact area (mm²) of ``part``'s surface between the heights ``z_range`` (mm above its tip)
         at the CL's end (``args`` and ``near`` as :meth:`_end_args` gives them): a flat end mill's side (or a
         wider part's) by one integral around it of the engaged heights (:func:`.cylinder.side_area`),
         another tool's by the integral of the engaged span over its height (:func:`.area.contact_area`,
-        its parts starting at :func:`_area_breaks`)."""
+        its parts starting at :func:`_area_breaks`). Where the integral's error estimate is over
+        :data:`AREA_WARN` of it, a warning saying so is appended to ``warnings``."""
         C, CB = args[3][near], args[4][near]
         if is_flat(part.profile.pieces):
             circles, segments = self._curves(np.vstack([part.row[None, :], C]), args[5], args[6])
-            return float(side_area(part.row, part.profile.pieces, part.profile.radius, *z_range, C, CB, *args[5:10],
-                                   circles, segments, SIDE_REL)[0])
-        breaks = _area_breaks(C, args[5], args[6], self.stock[5] - part.row[6], part.row[6])
-        return contact_area(lambda z: _width(args, z), part.profile.pieces, *z_range, breaks)[0]
+            area, err = side_area(part.row, part.profile.pieces, part.profile.radius, *z_range, C, CB, *args[5:10],
+                                  circles, segments, SIDE_REL)
+        else:
+            breaks = _area_breaks(C, args[5], args[6], self.stock[5] - part.row[6], part.row[6])
+            area, err = contact_area(lambda z: _width(args, z), part.profile.pieces, *z_range, breaks)
+        if err > AREA_WARN * abs(area):
+            warnings.append(f"contact area not converged: error estimate {err:.2g} mm² on {area:.6g} mm² "
+                            f"({z_range[0]:.4g} to {z_range[1]:.4g} mm above the tip)")
+        return float(area)
 
     def _curves(self, rows: np.ndarray, P: np.ndarray, NP: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:func:`.breaks.sweep_curves` of the sweeps ``rows`` (tool tables ``P``, ``NP``) about the stock's

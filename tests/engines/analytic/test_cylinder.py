@@ -131,8 +131,8 @@ def test_the_side_area_as_the_slices_test_finds_it(monkeypatch, seed, decimals):
     calls = []
     area = analytic.AnalyticEngine._area
     monkeypatch.setattr(analytic.AnalyticEngine, "_area",
-                        lambda self, args, near, part, z_range: calls.append((args, near, part, z_range))
-                        or area(self, args, near, part, z_range))
+                        lambda self, args, near, part, z_range, *rest: calls.append((args, near, part, z_range))
+                        or area(self, args, near, part, z_range, *rest))
     tools = {1: FlatEndMill(6, 3, shank_diameter=8, shoulder_length=4)}
     _, maps = run(_program(seed, decimals), tools, BoxStock((-20, -15, -6), (20, 15, 0)), slice_height=1.0)
     assert sum(m.contact_area for m in maps) > 50

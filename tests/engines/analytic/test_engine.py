@@ -504,3 +504,21 @@ def test_on_a_v_bits_steep_ramp_the_brep_engines_tool_copies_warn_and_miss_what_
     assert sampled.sweep_method == "sampled"
     assert any("material up to 1.61 mm high between them" in w for w in sampled.warnings), sampled.warnings
     assert 0 < sampled.removed_volume < 0.5 * exact.removed_volume
+
+
+def test_a_contact_area_out_of_evaluations_comes_with_a_warning(monkeypatch):
+    """A ball going down a ramp from 1 to 4 mm deep beside a slot 2 mm deep: its contact area converges with no
+    warning; with its rule allowed only 20 evaluations (:data:`.area.MAX_EVALS`), the area comes with a
+    warning giving its error estimate."""
+    import fusioncut.engines.analytic.area as area
+
+    up, across = LinearMove((0, 3, -2), (0, 3, 5), rapid=True, tool=1), LinearMove((0, 3, 5), (-40, 0, 5), rapid=True,
+                                                                                 tool=1)
+    moves = [feed((-40, 3, -2), (0, 3, -2)), up, across, feed((-40, 0, 5), (-40, 0, -1)), feed((-40, 0, -1), (0, 0, -4))]
+    tools = {1: BallEndMill(10, 20)}
+    stock = BoxStock((-60, -60, -20), (60, 60, 0))
+    _, maps = run(moves, tools, stock, max_segment_length=20.0)
+    assert maps[-1].contact_area > 0 and not any("contact area" in w for w in maps[-1].warnings)
+    monkeypatch.setattr(area, "MAX_EVALS", 20)
+    _, maps = run(moves, tools, stock, max_segment_length=20.0)
+    assert any(w.startswith("contact area not converged: error estimate") for w in maps[-1].warnings)
