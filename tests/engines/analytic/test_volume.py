@@ -15,6 +15,7 @@ from numba import njit
 from fusioncut.engines.analytic import engine as analytic
 from fusioncut.engines.analytic.breaks import sweep_curves
 from fusioncut.engines.analytic.profile import lower_profile
+from fusioncut.engines.analytic.sweeps import arc_row
 from fusioncut.engines.analytic.volume import _workspace, height_and_cause, inner_integral
 from fusioncut.engines.base import EngineOptions
 from fusioncut.model import BullNoseEndMill
@@ -62,9 +63,9 @@ RHO, OUTER = 10.206207261596575, 12.5
 
 
 def _arc(rho, a0, sw, z0, z1):
-    """A sweep row (:mod:`.sweeps`) of an arc or helix about the origin."""
-    return np.array([1.0, rho * math.cos(a0), rho * math.sin(a0), z0, rho * math.cos(a0 + sw),
-                     rho * math.sin(a0 + sw), z1, 0.0, 0.0, rho, a0, sw, 0.0])
+    """The sweep row (:func:`.sweeps.arc_row`) of an arc or helix about the origin."""
+    start = (rho * math.cos(a0), rho * math.sin(a0), z0)
+    return arc_row(start, (rho * math.cos(a0 + sw), rho * math.sin(a0 + sw), z1), (0.0, 0.0), rho, a0, sw, 0)
 
 
 @njit(cache=True)
