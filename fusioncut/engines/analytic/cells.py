@@ -296,11 +296,45 @@ def _retraces(A, B):
 
 
 @njit(cache=True)
+def footprint_ceiling(C, j, PP, NPC, RR, S, R):
+    """An upper bound (mm) of sweep ``C[j]``'s lower surface over the whole footprint of sweep ``S``
+    (radius ``R``), where ``C[j]``'s footprint holds it (a line's a line's, an arc's an arc's about the
+    same centre: :func:`_holds`, :func:`_holds_arc`); inf where it does not. Its top
+    (:func:`_top`), or for an arc of a turn or more its lowest turn's highest tip plus ``f(R_j)``: that
+    turn passes over every point within ``R_j`` of its circle, which holds ``S``'s footprint (the last
+    turn going down, the first going up, as :func:`.polar.held_annuli` takes them)."""
+    if C[j, 0] != S[0] or (S[0] != 0.0 and S[0] != 1.0):
+        return math.inf
+    k = int(C[j, 12])
+    rj = RR[k]
+    if S[0] == 0.0:
+        return _top(C, j, PP, NPC, RR) if _holds(C[j], rj, S, R, HOLD_TOL) else math.inf
+    if not _holds_arc(C[j], rj, S, R):
+        return math.inf
+    sw = abs(C[j, 11])
+    if sw < 2.0 * math.pi:
+        return _top(C, j, PP, NPC, RR)
+    z0, z1 = C[j, 3], C[j, 6]
+    turn = 2.0 * math.pi / sw
+    low_turn = z0 + (z1 - z0) * (1.0 - turn) if z1 < z0 else z0 + (z1 - z0) * turn
+    return low_turn + profile_height(PP[k, :NPC[k]], rj)
+
+
+@njit(cache=True)
+def footprint_ceilings(S, R, C, PP, NPC, RR):
+    """:func:`footprint_ceiling` of each row of ``C`` over ``S``'s footprint (mm; inf where unknown)."""
+    out = np.empty(C.shape[0])
+    for j in range(C.shape[0]):
+        out[j] = footprint_ceiling(C, j, PP, NPC, RR, S, R)
+    return out
+
+
+@njit(cache=True)
 def held_below(S, R, C, PP, NPC, RR):
     """Whether an earlier sweep of ``C`` holds the whole footprint of sweep ``S`` (radius ``R``; a
-    line by a line, an arc by an arc about the same centre) with its top at or below ``S``'s lowest
-    tip, or ``S`` retraces part of its path at or above it (:func:`_retraces`): then the CL removes
-    nothing (module docstring)."""
+    line by a line, an arc by an arc about the same centre) with its lower surface there at or below
+    ``S``'s lowest tip (:func:`footprint_ceiling`), or ``S`` retraces part of its path at or above it
+    (:func:`_retraces`): then the CL removes nothing (module docstring)."""
     if S[0] != 0.0 and S[0] != 1.0:
         return False
     low = min(S[3], S[6])
@@ -310,9 +344,7 @@ def held_below(S, R, C, PP, NPC, RR):
         rj = RR[int(C[j, 12])]
         if R <= rj and _retraces(C[j], S):
             return True
-        if _top(C, j, PP, NPC, RR) > low:
-            continue
-        if _holds(C[j], rj, S, R, HOLD_TOL) if S[0] == 0.0 else _holds_arc(C[j], rj, S, R):
+        if footprint_ceiling(C, j, PP, NPC, RR, S, R) <= low:
             return True
     return False
 
@@ -353,13 +385,16 @@ def _undominated(C, PP, NPC, RR, keep, floors):
 
 
 @njit(cache=True)
-def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps, many, most):
+def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps, many, most, foot):
     """(whether the CL ``S`` can remove nothing in the rectangle, the mask of the rows of ``C`` that
     can give ``h`` in it, their floors (mm)), as the module docstring says; footprints widened by
     ``eps`` (mm) for the floors, as :func:`.contact.material_at` widens them. Where more than
     ``many`` and at most ``most`` are left, the dominated ones are left out too (O(n²): a caller that
     quarters a cell left with more than ``many`` passes a ``most`` that spares it this for the
-    hundreds of sweeps a wide cell of an adaptive clearing meets)."""
+    hundreds of sweeps a wide cell of an adaptive clearing meets). ``foot``: per row, a bound of its
+    lower surface over ``S``'s footprint (:func:`footprint_ceilings`), which caps ``h`` wherever the
+    CL can remove anything, as a ceiling over the whole cell does (a helix's earlier turns under a cell
+    that reaches beyond them); empty where none is given (the contact's points may lie outside it)."""
     n = C.shape[0]
     keep = np.zeros(n, dtype=np.bool_)
     floors = np.full(n, math.inf)
@@ -370,6 +405,8 @@ def relevant_sweeps(x0, y0, x1, y1, S, P, R, C, PP, NPC, RR, zb, zt, eps, many, 
         floors[j] = cell_floor(C[j], PP[k, :NPC[k]], RR[k], x0, y0, x1, y1, eps)
         if floors[j] < cap:
             c = cell_ceiling(C[j], PP[k, :NPC[k]], RR[k], x0, y0, x1, y1)
+            if foot.shape[0] > 0:
+                c = min(c, foot[j])
             if c < cap:
                 cap = c
                 capper = j

@@ -60,6 +60,7 @@ Z_TOL = 1e-10  # mm: the contact's height range
 MARGIN_NOISE = 1e-10  # mm: contact_range's regula falsi halves the bracket where an end's margin is within
 # this of 0 but not 0: below a tangential onset the margin is round-off (~1e-13 mm), flat, and would pull
 # every chord onto that end
+NO_FOOT = np.empty(0)  # relevant_sweeps' footprint ceilings: none (a contact point may lie beyond the CL's footprint)
 MANY = 12  # a grid cell holding more sweeps leaves out the dominated ones (.cells.relevant_sweeps)
 BESIDE = 1e-7  # rad: a wall's crossing of a slice is scanned this far either side (beside_walls)
 GAP_TOL = 1e-6  # rad: gaps narrower than this between engaged arcs are tangent points, not gaps
@@ -180,7 +181,7 @@ def sweep_grid(x0, y0, width, n, S, P, R, C, PP, NPC, RR, zb, zt, eps):
         i0, i1, j0, j1, rows = stack.pop()
         single = i1 - i0 == 1 and j1 - j0 == 1
         keep = relevant_sweeps(x0 + i0 * w, y0 + j0 * w, x0 + i1 * w, y0 + j1 * w, S, P, R, C[rows], PP, NPC, RR, zb,
-                               zt, eps, MANY, math.inf if single else DOMINANCE_MOST)[1]
+                               zt, eps, MANY, math.inf if single else DOMINANCE_MOST, NO_FOOT)[1]
         rows = rows[keep]
         if single:
             items[i0 * n + j0] = rows

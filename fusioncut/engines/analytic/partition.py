@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.cells import cell_ceiling, cell_floor, relevant_sweeps
+from fusioncut.engines.analytic.cells import cell_ceiling, cell_floor, footprint_ceilings, relevant_sweeps
 from fusioncut.engines.analytic.flat import all_level_flat
 from fusioncut.engines.analytic.polar import held_annuli, polar_applies
 
@@ -31,7 +31,7 @@ ADAPTIVE, FLAT, POLAR = 0, 1, 2  # how a cell is integrated (.volume, .flat, .po
 
 
 @njit(cache=True)
-def _cull(x0, y0, x1, y1, rows, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps, most):
+def _cull(x0, y0, x1, y1, rows, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps, most, foot):
     """(whether nothing is removed in the cell, the rows of ``rows`` (indices into ``C``) it keeps, their
     floors): the rows whose boxes meet the cell, then :func:`.cells.relevant_sweeps` of them. A row whose
     box holds the cell and whose ceiling over it is at most the CL's own floor there makes the cell empty
@@ -41,6 +41,8 @@ def _cull(x0, y0, x1, y1, rows, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps
     own = max(zb, cell_floor(S, P, R, x0, y0, x1, y1, 0.0))
     for i in range(rows.shape[0] - 1, -1, -1):
         j = rows[i]
+        if foot[j] <= own:
+            return True, rows[:0], np.empty(0)
         if CB[j, 0] <= x0 and CB[j, 2] >= x1 and CB[j, 1] <= y0 and CB[j, 3] >= y1:
             k = int(C[j, 12])
             if cell_ceiling(C[j], PP[k, :NPC[k]], RR[k], x0, y0, x1, y1) <= own:
@@ -54,9 +56,12 @@ def _cull(x0, y0, x1, y1, rows, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps
             m += 1
     meet = meet[:m]
     Cm = np.empty((m, C.shape[1]))
+    footm = np.empty(m)
     for i in range(m):
         Cm[i] = C[meet[i]]
-    empty, keep, floors = relevant_sweeps(x0, y0, x1, y1, S, P, R, Cm, PP, NPC, RR, zb, zt, 0.0, cell_sweeps, most)
+        footm[i] = foot[meet[i]]
+    empty, keep, floors = relevant_sweeps(x0, y0, x1, y1, S, P, R, Cm, PP, NPC, RR, zb, zt, 0.0, cell_sweeps, most,
+                                          footm)
     return empty, meet[keep], floors[keep]
 
 
@@ -71,6 +76,7 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
     nx, ny = max(1, math.ceil((x1 - x0) / tile)), max(1, math.ceil((y1 - y0) / tile))
     stack = []
     everything = np.arange(C.shape[0])
+    foot = footprint_ceilings(S, R, C, PP, NPC, RR)
     for i in range(nx):
         for j in range(ny):
             cx0 = x0 + (x1 - x0) * i / nx
@@ -79,7 +85,7 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
             cy1 = y0 + (y1 - y0) * (j + 1) / ny if j + 1 < ny else y1
             wide = most if cx1 - cx0 > min_cell else np.iinfo(np.int64).max
             empty, keep, floors = _cull(cx0, cy0, cx1, cy1, everything, S, P, R, C, CB, PP, NPC, RR, zb, zt,
-                                        cell_sweeps, wide)
+                                        cell_sweeps, wide, foot)
             stack.append((cx0, cy0, cx1, cy1, empty, keep, floors))
     cells = []
     kinds = []
@@ -101,7 +107,8 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
             quarters = []
             any_empty = False
             for qx0, qy0, qx1, qy1 in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1), (mx, my, cx1, cy1)):
-                e, k, f = _cull(qx0, qy0, qx1, qy1, keep, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps, wide)
+                e, k, f = _cull(qx0, qy0, qx1, qy1, keep, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps, wide,
+                                foot)
                 any_empty = any_empty or e
                 quarters.append((qx0, qy0, qx1, qy1, e, k, f))
             if n > cell_sweeps or any_empty:

@@ -110,11 +110,11 @@ def test_a_pass_retraced_lower_lies_under_the_first():
     PP, NPC, RR = lp.pieces[None], np.array([len(lp.pieces)]), np.array([lp.radius])
     own = line_row((-5, 0, -6), (20, 0, -6), 0)
     cell = (-20.0, -20.0, 30.0, 20.0)  # no sweep holds it: no ceiling
-    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 0, math.inf)
+    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 0, math.inf, np.empty(0))
     assert keep.tolist() == [False, True, True, True]
-    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 10, math.inf)
+    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 10, math.inf, np.empty(0))
     assert keep.all()  # as many as that: not looked for
-    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 0, 3)
+    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 0, 3, np.empty(0))
     assert keep.all()  # more than `most`: not looked for either (the caller quarters the cell)
 
 
@@ -177,6 +177,39 @@ def test_an_arc_cl_whose_footprint_a_deeper_arc_holds_removes_nothing():
     assert not held(_arc(10, math.pi / 4, math.pi / 2, -6), circle)  # below it
     assert not held(quarter, circle, radius=flat.radius + 0.1)  # a wider tool
     assert not held(quarter, line_row((10, -20, -5), (10, 20, -5), 0))  # a line holds no arc here
+
+
+def test_a_helix_of_a_turn_or_more_caps_h_over_a_cl_on_its_circle_at_its_lowest_turn():
+    """footprint_ceiling: an earlier helix of a turn or more about the CL's centre, whose circle is within
+    the tools' radii's difference of the CL's, passes over all of the CL's footprint on its lowest turn,
+    so its lower surface there is at most that turn's highest tip plus f(R); a shorter arc holding it
+    is bounded by its top; one that does not hold it gives no bound. held_below takes the same bound."""
+    from fusioncut.engines.analytic.cells import footprint_ceiling, held_below
+
+    for kind in ("flat", "ball"):
+        lp = lower_profile(TOOLS[kind])
+        PP, NPC, RR = lp.pieces[None], np.array([len(lp.pieces)]), np.array([lp.radius])
+        rise = lp.radius if kind == "ball" else 0.0  # f(R)
+        down = arc_row((10, 0, 0), (10, 0, -3), (0, 0), 10.0, 0.0, 6 * math.pi, 0)  # three turns, 1 mm each
+        up = arc_row((10, 0, -3), (10, 0, 0), (0, 0), 10.0, 0.0, 6 * math.pi, 0)
+        quarter = _arc(10, math.pi / 4, math.pi / 2, -3.5)
+
+        def ceiling(row, own=quarter, radius=lp.radius):
+            return footprint_ceiling(np.array([row]), 0, PP, NPC, RR, own, radius)
+
+        assert ceiling(down) == pytest.approx(-2.0 + rise, abs=1e-12)  # its last turn's highest tip
+        assert ceiling(up) == pytest.approx(-2.0 + rise, abs=1e-12)  # its first turn's
+        assert ceiling(_arc(10, 0.0, math.pi, -1)) == pytest.approx(-1.0 + rise)  # half a turn: its top
+        assert ceiling(_arc(10.5, 0.0, 6 * math.pi, -1)) == math.inf  # off the CL's circle by more than 0
+        assert ceiling(down, radius=lp.radius + 0.1) == math.inf  # a wider tool
+        assert ceiling(line_row((10, -20, -5), (10, 20, -5), 0)) == math.inf  # a line holds no arc here
+        assert ceiling(line_row((0, 0, -5), (20, 0, -5), 0), own=line_row((5, 0, -4), (15, 0, -4), 0)) \
+            == pytest.approx(-5.0 + rise)  # a line in a line: its top
+        # a narrower tool's arc 0.05 mm off its circle (no retrace of its path): held where its lowest tip is
+        # at or above that bound
+        narrower = lp.radius - 0.05
+        assert held_below(_arc(10.05, 1.0, 0.5, -2.0 + rise), narrower, np.array([down]), PP, NPC, RR)
+        assert not held_below(_arc(10.05, 1.0, 0.5, -2.01 + rise), narrower, np.array([down]), PP, NPC, RR)
 
 
 def _integrated_rows(monkeypatch, key) -> list:

@@ -57,7 +57,7 @@ def test_the_cells_are_disjoint_inside_the_box_and_hold_their_relevant_sweeps():
                 # every sweep that can shape the cell is there (random paths never hold one another, so
                 # no dominated one is left out), and only sweeps whose boxes meet it
                 empty, keep, _ = relevant_sweeps(x0, y0, x1, y1, S, prof.pieces, R, C, P, NP, RR, ZB, ZT, 0.0,
-                                                 math.inf, 0)
+                                                 math.inf, 0, np.empty(0))
                 assert not empty
                 assert set(np.flatnonzero(keep)) <= set(mine.tolist())
                 assert all(CB[k, 0] <= x1 and CB[k, 2] >= x0 and CB[k, 1] <= y1 and CB[k, 3] >= y0 for k in mine)

@@ -81,6 +81,35 @@ def test_a_wider_helix_down_a_bored_hole_removes_the_ring_between(monkeypatch):
         assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
 
 
+def test_a_bore_under_a_contours_floor_meets_only_its_own_turns(monkeypatch):
+    """As fusion-posted/1110_wall's Bore1 under the wall's contour (R = 1.325, rho = 1.475, 0.5 mm a turn,
+    posted in 3 decimals): level passes at z = -0.5 cross the hole's top before the bore goes down from
+    there. Below its first turn each CL's cells reach beyond the helix's footprint (a disc's box), but
+    the helix's earlier turns cap h over the CL's whole footprint below the level passes, which are left
+    out of them (.cells.footprint_ceiling); each CL going down dz then removes its closed form,
+    pi ((rho + R)^2 - (rho - R)^2) dz."""
+    R, rho, pitch = 1.325, 1.475, 0.5
+    passes = [LinearMove((x, -4.0, 5.0), (x, -4.0, -0.5), rapid=True, tool=1) for x in (0.75, 1.5)]
+    passes = [passes[0], LinearMove((0.75, -4.0, -0.5), (0.75, 8.0, -0.5), feed=600.0, tool=1),
+              LinearMove((0.75, 8.0, -0.5), (1.5, 8.0, -0.5), feed=600.0, tool=1),
+              LinearMove((1.5, 8.0, -0.5), (1.5, -4.0, -0.5), feed=600.0, tool=1)]
+    bore = _bore(rho, turns=6, pitch=pitch, decimals=3, z0=-0.5)
+    rows = []
+    polar = analytic.polar_volume
+    monkeypatch.setattr(analytic, "polar_volume", lambda *a: rows.append(a[9]) or polar(*a))
+    _, maps = run(passes + bore, {1: FlatEndMill(2 * R, 15)}, BoxStock((-6, -6, -6), (8, 10, 0)))
+    assert all(m.engine == "analytic" for m in maps)
+    deep = [m for m in maps if m.start[2] <= -0.5 - 2 * pitch and m.position[2] < m.start[2]]
+    assert len(deep) >= 20
+    for m in deep:
+        dz = m.start[2] - m.position[2]
+        assert m.removed_volume == pytest.approx(math.pi * ((rho + R) ** 2 - (rho - R) ** 2) * dz, rel=1e-7), m.cl_index
+    rows.clear()
+    _, maps = run(passes + bore[:8], {1: FlatEndMill(2 * R, 15)}, BoxStock((-6, -6, -6), (8, 10, 0)))
+    last = [r for r in rows[-3:]]
+    assert last and all((r[:, 0] == 1.0).all() for r in last)  # the last CLs' cells: the helix's arcs only
+
+
 @pytest.mark.parametrize("rho,decimals", [(0.375, None), (0.375, 3), (1.475, 3), (2.5, 4)])
 def test_helices_in_polar_coordinates_as_the_adaptive_integral(monkeypatch, rho, decimals):
     """Helical bores of a flat end mill (R = 1.325, as fusion-posted/1110_wall's Bore1), exact and rounded
@@ -143,7 +172,7 @@ def test_real_helical_bores_in_polar_coordinates_as_the_adaptive_integral(monkey
 
     calls = _spied(monkeypatch)
     polar = window(2495, 50) + window(4100, 30)
-    assert len(calls) > 100
+    assert len(calls) >= 60  # most CLs hold a polar cell (often one: the earlier turns cap h over the rest)
     monkeypatch.setattr(analytic, "POLAR_FORMS", False)
     adaptive = window(2495, 50) + window(4100, 30)
     assert sum(m.removed_volume for m in polar) > 10
