@@ -5,9 +5,11 @@ Machine frame, mm. The footprint's box within the stock is cut into equal tiles 
 ``tile`` (a long CL's footprint meets hundreds of earlier sweeps, a point in it only those of its
 tile). A cell keeps the earlier sweeps :func:`.cells.relevant_sweeps` leaves it (footprint boxes
 meeting the cell first); one it proves empty is dropped. A cell wider than ``min_cell`` is quartered
-where more than ``cell_sweeps`` sweeps are left or where a quarter is proven empty (its area then costs
-nothing), unless its closed form costs less: all sweeps level and flat (:func:`.flat.all_level_flat`)
-and at most ``flat_sweeps`` of them, or its polar integral skips what is empty
+where more than ``cell_sweeps`` sweeps are left, where a quarter is proven empty (its area then costs
+nothing) or, in a cell left to the adaptive integral, where a quarter's sweeps are all level and flat (its
+closed form then replaces a share of the adaptive integral: a helical entry or a lead-in reaching into a
+corner of a level cut's footprint), unless its closed form costs less: all sweeps level and flat
+(:func:`.flat.all_level_flat`) and at most ``flat_sweeps`` of them, or its polar integral skips what is empty
 (:func:`.polar.polar_applies`, at most ``polar_sweeps`` and an annulus an earlier helix holds,
 :func:`.polar.held_annuli`). A quarter needs only its cell's sweeps: one left out there gives ``h``
 nowhere in the cell (its floor over the cell is at least what ``h`` is at most). Cells are taken last
@@ -106,12 +108,18 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
             wide = most if 0.5 * (cx1 - cx0) > min_cell else np.iinfo(np.int64).max
             quarters = []
             any_empty = False
+            any_flat = False
             for qx0, qy0, qx1, qy1 in ((cx0, cy0, mx, my), (mx, cy0, cx1, my), (cx0, my, mx, cy1), (mx, my, cx1, cy1)):
                 e, k, f = _cull(qx0, qy0, qx1, qy1, keep, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps, wide,
                                 foot)
                 any_empty = any_empty or e
+                if flat_forms and not flat and not polar and not e and k.shape[0] < n:
+                    Cq = np.empty((k.shape[0], C.shape[1]))
+                    for i in range(k.shape[0]):
+                        Cq[i] = C[k[i]]
+                    any_flat = any_flat or all_level_flat(S, P, Cq, PP, NPC)
                 quarters.append((qx0, qy0, qx1, qy1, e, k, f))
-            if n > cell_sweeps or any_empty:
+            if n > cell_sweeps or any_empty or any_flat:
                 for q in quarters:
                     stack.append(q)
                 continue

@@ -77,3 +77,24 @@ def test_without_earlier_sweeps_each_tile_is_one_cell():
                                                ZT, MIN_CELL_RADII * R, CELL_SWEEPS, FLAT_SWEEPS, POLAR_SWEEPS, 48)
     assert len(cells) == math.ceil(60 / (TILE_RADII * R)) and set(kinds.tolist()) == {FLAT} and len(items) == 0
     assert cells[:, 0].min() == -30.0 and cells[:, 2].max() == 30.0
+
+
+def test_an_adaptive_cell_is_quartered_where_a_quarter_is_level_and_flat():
+    """A level flat cut among level passes and one ramp reaching a corner of its footprint (a helical
+    entry's last turn beside a contour): the quarters the ramp misses are computed in closed form, so
+    every cell left to the adaptive integral holds the ramp."""
+    prof = lower_profile(FlatEndMill(2 * R, 20))
+    P, NP, RR = prof.pieces[None], np.array([prof.pieces.shape[0]]), np.array([prof.radius])
+    ramp = line_row((6.0, 4.5, -1.0), (9.0, 4.5, -3.0), 0)
+    C = np.array([line_row((-8.0, y, -2.0), (8.0, y, -2.0), 0) for y in (-2.0, 0.0, 2.0)] + [ramp])
+    CB = np.array([(min(r[1], r[4]) - R, min(r[2], r[5]) - R, max(r[1], r[4]) + R, max(r[2], r[5]) + R) for r in C])
+    S = line_row((-4.0, 0.0, -4.0), (4.0, 0.0, -4.0), 0)
+    cells, kinds, starts, items = volume_cells(-7.0, -3.0, 7.0, 3.0, TILE_RADII * R, S, prof.pieces, R, C, CB, P, NP,
+                                               RR, ZB, ZT, MIN_CELL_RADII * R, CELL_SWEEPS, FLAT_SWEEPS, POLAR_SWEEPS,
+                                               48)
+    assert FLAT in kinds.tolist() and ADAPTIVE in kinds.tolist()
+    for i in np.flatnonzero(kinds == ADAPTIVE):
+        assert 3 in items[starts[i]:starts[i + 1]].tolist()
+    for x, y in ((1.0, -2.0), (1.0, 2.0), (5.0, -1.0)):  # beside the CL's path, beyond the ramp's reach
+        inside = (cells[:, 0] <= x) & (x <= cells[:, 2]) & (cells[:, 1] <= y) & (y <= cells[:, 3])
+        assert set(kinds[inside].tolist()) == {FLAT}
