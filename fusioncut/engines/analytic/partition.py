@@ -8,7 +8,10 @@ meeting the cell first); one it proves empty is dropped. A cell wider than ``min
 where more than ``cell_sweeps`` sweeps are left, where a quarter is proven empty (its area then costs
 nothing) or, in a cell left to the adaptive integral, where a quarter's sweeps are all level and flat (its
 closed form then replaces a share of the adaptive integral: a helical entry or a lead-in reaching into a
-corner of a level cut's footprint), unless its closed form costs less: all sweeps level and flat
+corner of a level cut's footprint) or, for a flat end mill's CL in a cell wider than its radius, where a
+quarter leaves one of the cell's sweeps out (an adaptive integral's break points and probes grow with the
+sweeps it meets; a round tool's surfaces bend everywhere, and its quarters cost more than they shed),
+unless its closed form costs less: all sweeps level and flat
 (:func:`.flat.all_level_flat`) and at most ``flat_sweeps`` of them, or its polar integral skips what is empty
 (:func:`.polar.polar_applies`, at most ``polar_sweeps`` and an annulus an earlier helix holds,
 :func:`.polar.held_annuli`). A quarter needs only its cell's sweeps: one left out there gives ``h``
@@ -28,6 +31,7 @@ from numba import njit
 from fusioncut.engines.analytic.cells import cell_ceiling, cell_floor, footprint_ceilings, relevant_sweeps
 from fusioncut.engines.analytic.flat import all_level_flat
 from fusioncut.engines.analytic.polar import held_annuli, polar_applies
+from fusioncut.engines.analytic.profile import is_flat
 
 ADAPTIVE, FLAT, POLAR = 0, 1, 2  # how a cell is integrated (.volume, .flat, .polar)
 
@@ -77,6 +81,7 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
     the closed forms are taken where they apply (else those cells are adaptive ones: a differential check)."""
     nx, ny = max(1, math.ceil((x1 - x0) / tile)), max(1, math.ceil((y1 - y0) / tile))
     stack = []
+    flat_tool = is_flat(P)
     everything = np.arange(C.shape[0])
     foot = footprint_ceilings(S, R, C, PP, NPC, RR)
     for i in range(nx):
@@ -119,7 +124,11 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
                         Cq[i] = C[k[i]]
                     any_flat = any_flat or all_level_flat(S, P, Cq, PP, NPC)
                 quarters.append((qx0, qy0, qx1, qy1, e, k, f))
-            if n > cell_sweeps or any_empty or any_flat:
+            shed = False
+            if flat_tool and not flat and not polar and cx1 - cx0 > R:
+                for q in quarters:
+                    shed = shed or q[5].shape[0] < n
+            if n > cell_sweeps or any_empty or any_flat or shed:
                 for q in quarters:
                     stack.append(q)
                 continue

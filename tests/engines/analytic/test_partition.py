@@ -6,12 +6,12 @@ import math
 
 import numpy as np
 
-from fusioncut.engines.analytic.cells import cell_floor, relevant_sweeps
+from fusioncut.engines.analytic.cells import cell_floor, footprint_ceilings, relevant_sweeps
 from fusioncut.engines.analytic.engine import CELL_SWEEPS, FLAT_SWEEPS, MIN_CELL_RADII, POLAR_SWEEPS, TILE_RADII
 from fusioncut.engines.analytic.flat import all_level_flat
 from fusioncut.engines.analytic.partition import ADAPTIVE, FLAT, volume_cells
 from fusioncut.engines.analytic.profile import lower_profile
-from fusioncut.engines.analytic.sweeps import line_row
+from fusioncut.engines.analytic.sweeps import arc_row, line_row
 from fusioncut.model import BallEndMill, FlatEndMill
 
 R = 3.0
@@ -98,3 +98,41 @@ def test_an_adaptive_cell_is_quartered_where_a_quarter_is_level_and_flat():
     for x, y in ((1.0, -2.0), (1.0, 2.0), (5.0, -1.0)):  # beside the CL's path, beyond the ramp's reach
         inside = (cells[:, 0] <= x) & (x <= cells[:, 2]) & (cells[:, 1] <= y) & (y <= cells[:, 3])
         assert set(kinds[inside].tolist()) == {FLAT}
+
+
+def test_a_flat_cut_beside_a_helical_entry_is_quartered_where_its_quarters_shed_sweeps():
+    """The Titan-like program's CL 123 (a 12 mm flat end mill, the adaptive's first passes at z = -4 beside
+    its helical entry, two turns of radius 4 from z = 0.5, under the facing passes at z = -1): no sweep
+    gives h all over the 12 mm tile, and none is level flat in all of it. An adaptive cell wider than the
+    tool's radius is quartered where a quarter leaves a sweep out (each of its quarters keeps all its
+    sweeps), since an adaptive integral's cost grows with the sweeps it meets."""
+    R6 = 6.0
+    prof = lower_profile(FlatEndMill(2 * R6, 20))
+    P, NP, RR = prof.pieces[None], np.array([prof.pieces.shape[0]]), np.array([prof.radius])
+    chords = ((21.0, 22.0, 23.0, 22.0), (23.0, 22.0, 22.997, 22.479), (22.997, 22.479, 22.882, 22.929),
+              (22.882, 22.929, 22.664, 23.326), (22.664, 23.326, 22.359, 23.646), (22.359, 23.646, 21.987, 23.87),
+              (21.987, 23.87, 21.575, 23.985))
+    rows = [arc_row((21.0, 22.0, 0.5), (21.0, 22.0, -4.0), (25.0, 22.0), 4.0, math.pi, -4 * math.pi, 0)]
+    rows += [line_row((a, b, -4.0), (c, d, -4.0), 0) for a, b, c, d in chords]
+    rows += [line_row((160.0, y, -1.0), (-10.0, y, -1.0), 0) for y in (13.0, 31.0)] + [
+        line_row((-10.0, 22.0, -1.0), (160.0, 22.0, -1.0), 0)]
+    C = np.array(rows)
+    CB = np.array([(min(r[1], r[4]) - R6, min(r[2], r[5]) - R6, max(r[1], r[4]) + R6, max(r[2], r[5]) + R6)
+                   for r in C])
+    CB[0] = (25.0 - 10.0, 22.0 - 10.0, 25.0 + 10.0, 22.0 + 10.0)  # the helix's: its circle widened by R
+    S = line_row((21.575, 23.985, -4.0), (21.148, 23.985, -4.0), 0)
+    box = (15.148, 17.985, 27.575, 29.985)
+    cells, kinds, starts, items = volume_cells(*box, TILE_RADII * R6, S, prof.pieces, R6, C, CB, P, NP, RR, ZB, ZT,
+                                               MIN_CELL_RADII * R6, CELL_SWEEPS, FLAT_SWEEPS, POLAR_SWEEPS, 48)
+    foot = footprint_ceilings(S, R6, C, P, NP, RR)
+    assert len(cells) > 1
+    for i in np.flatnonzero(kinds == ADAPTIVE):
+        x0, y0, x1, y1 = cells[i]
+        if x1 - x0 <= R6:
+            continue
+        mine = items[starts[i]:starts[i + 1]]
+        mx, my = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        for q in ((x0, y0, mx, my), (mx, y0, x1, my), (x0, my, mx, y1), (mx, my, x1, y1)):
+            _, keep, _ = relevant_sweeps(*q, S, prof.pieces, R6, C[mine], P, NP, RR, ZB, ZT, 0.0, CELL_SWEEPS, 48,
+                                         foot[mine])
+            assert keep.all()
