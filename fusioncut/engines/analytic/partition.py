@@ -8,9 +8,10 @@ meeting the cell first); one it proves empty is dropped. A cell wider than ``min
 where more than ``cell_sweeps`` sweeps are left, where a quarter is proven empty (its area then costs
 nothing) or, in a cell left to the adaptive integral, where a quarter's sweeps are all level and flat (its
 closed form then replaces a share of the adaptive integral: a helical entry or a lead-in reaching into a
-corner of a level cut's footprint) or, for a flat end mill's CL in a cell wider than its radius, where a
-quarter leaves one of the cell's sweeps out (an adaptive integral's break points and probes grow with the
-sweeps it meets; a round tool's surfaces bend everywhere, and its quarters cost more than they shed),
+corner of a level cut's footprint) or where a quarter sheds the cell's sweeps (an adaptive integral's
+break points and probes grow with the sweeps it meets): for a flat end mill's CL in a cell wider than its
+radius, a quarter that leaves one out; for a round tool's, in a cell wider than twice its radius, one that
+leaves half of them out (its surfaces bend all over a cell, and smaller quarters cost more than they shed),
 unless its closed form costs less: all sweeps level and flat
 (:func:`.flat.all_level_flat`) and at most ``flat_sweeps`` of them, or its polar integral skips what is empty
 (:func:`.polar.polar_applies`, at most ``polar_sweeps`` and an annulus an earlier helix holds,
@@ -125,9 +126,9 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
                     any_flat = any_flat or all_level_flat(S, P, Cq, PP, NPC)
                 quarters.append((qx0, qy0, qx1, qy1, e, k, f))
             shed = False
-            if flat_tool and not flat and not polar and cx1 - cx0 > R:
+            if not flat and not polar and cx1 - cx0 > (R if flat_tool else 2.0 * R):
                 for q in quarters:
-                    shed = shed or q[5].shape[0] < n
+                    shed = shed or (q[5].shape[0] < n if flat_tool else 2 * q[5].shape[0] <= n)
             if n > cell_sweeps or any_empty or any_flat or shed:
                 for q in quarters:
                     stack.append(q)
