@@ -33,7 +33,11 @@ an earlier sweep holds the CL's whole footprint with its top at or below the CL'
 pass retraced above a deeper one, a lead-in run again higher up, a contour's spring pass; a line in a
 line, an arc in an arc about the same centre), or where the CL goes over part of an earlier sweep's
 path at or above it with the same tool (a helical entry or a ramp run again), ``h`` is nowhere above
-the CL's lower surface and it removes nothing (:func:`held_below`).
+the CL's lower surface and it removes nothing (:func:`held_below`). An earlier sweep holding the CL's
+whole footprint bounds ``h`` wherever the CL removes anything, by its top or, for an arc of a turn or
+more, by its lowest turn's highest tip plus ``f(R)`` (:func:`footprint_ceiling`): that bound caps a
+cell's sweeps as a ceiling over the cell does, where the cell reaches beyond the holder's footprint
+(a helix's earlier turns under a bore's disc-shaped footprint).
 """
 from __future__ import annotations
 
@@ -43,8 +47,8 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.profile import is_flat, profile_height
-from fusioncut.engines.analytic.sweeps import (ARC, OUTSIDE, angle_windows, point_segment_distance, sweep_lower,
-                                               window_span)
+from fusioncut.engines.analytic.sweeps import (ARC, OUTSIDE, angle_windows, lowest_turn_top, point_segment_distance,
+                                               sweep_lower, window_span)
 from fusioncut.engines.analytic.vertical import is_vertical
 
 
@@ -301,8 +305,8 @@ def footprint_ceiling(C, j, PP, NPC, RR, S, R):
     (radius ``R``), where ``C[j]``'s footprint holds it (a line's a line's, an arc's an arc's about the
     same centre: :func:`_holds`, :func:`_holds_arc`); inf where it does not. Its top
     (:func:`_top`), or for an arc of a turn or more its lowest turn's highest tip plus ``f(R_j)``: that
-    turn passes over every point within ``R_j`` of its circle, which holds ``S``'s footprint (the last
-    turn going down, the first going up, as :func:`.polar.held_annuli` takes them)."""
+    turn passes over every point within ``R_j`` of its circle, which holds ``S``'s footprint
+    (:func:`.sweeps.lowest_turn_top`)."""
     if C[j, 0] != S[0] or (S[0] != 0.0 and S[0] != 1.0):
         return math.inf
     k = int(C[j, 12])
@@ -311,13 +315,9 @@ def footprint_ceiling(C, j, PP, NPC, RR, S, R):
         return _top(C, j, PP, NPC, RR) if _holds(C[j], rj, S, R, HOLD_TOL) else math.inf
     if not _holds_arc(C[j], rj, S, R):
         return math.inf
-    sw = abs(C[j, 11])
-    if sw < 2.0 * math.pi:
+    if abs(C[j, 11]) < 2.0 * math.pi:
         return _top(C, j, PP, NPC, RR)
-    z0, z1 = C[j, 3], C[j, 6]
-    turn = 2.0 * math.pi / sw
-    low_turn = z0 + (z1 - z0) * (1.0 - turn) if z1 < z0 else z0 + (z1 - z0) * turn
-    return low_turn + profile_height(PP[k, :NPC[k]], rj)
+    return lowest_turn_top(C[j]) + profile_height(PP[k, :NPC[k]], rj)
 
 
 @njit(cache=True)

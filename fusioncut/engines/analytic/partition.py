@@ -41,7 +41,8 @@ ADAPTIVE, FLAT, POLAR = 0, 1, 2  # how a cell is integrated (.volume, .flat, .po
 def _cull(x0, y0, x1, y1, rows, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps, most, foot):
     """(whether nothing is removed in the cell, the rows of ``rows`` (indices into ``C``) it keeps, their
     floors): the rows whose boxes meet the cell, then :func:`.cells.relevant_sweeps` of them. A row whose
-    box holds the cell and whose ceiling over it is at most the CL's own floor there makes the cell empty
+    box holds the cell and whose ceiling over it, or whose bound over the CL's whole footprint (``foot``,
+    :func:`.cells.footprint_ceilings`), is at most the CL's own floor there makes the cell empty
     whatever the others do (relevant_sweeps' cap is at most that ceiling): the rows are first searched for
     one, latest first (the pass before this one, as a trochoid's return runs inside its last loop), and
     an empty cell's rows are not kept (nobody reads them)."""

@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.breaks import curve_meetings_x, edge_crossings
-from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat, sweep_lower
+from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat, lowest_turn_top, sweep_lower
 from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
 
 AXIS_TOL = 1e-10  # mm: arcs whose centres are this close share the CL's axis
@@ -427,9 +427,7 @@ def held_annuli(S, P, C, PP, NPC, RR):
         if not (_on_axis(C[j], S[7], S[8]) and sw >= _TWO_PI):
             continue
         k = int(C[j, 12])
-        z0, z1 = C[j, 3] + PP[k, 0, 3], C[j, 6] + PP[k, 0, 3]
-        top = z0 + (z1 - z0) * (1.0 - _TWO_PI / sw) if z1 < z0 else z0 + (z1 - z0) * _TWO_PI / sw
-        if top <= own:
+        if lowest_turn_top(C[j]) + PP[k, 0, 3] <= own:
             rho, Rj = C[j, 9], RR[k]
             out.append((max(rho - Rj, 0.0), rho + Rj))
     res = np.empty((len(out) - 1, 2))

@@ -103,6 +103,15 @@ def outside_row(center, radius: float, z: float, tool: int) -> np.ndarray:
     return row
 
 
+@njit(cache=True, inline="always")
+def lowest_turn_top(S):
+    """The highest tip height (mm) on the lowest whole turn of arc sweep ``S`` of a turn or more (the last
+    turn going down, the first going up): that turn passes over every point within the tool's radius of
+    its circle, so the sweep's lower surface there is at most this plus ``f(R)``."""
+    turn = 2.0 * math.pi / abs(S[11])
+    return S[3] + (S[6] - S[3]) * (1.0 - turn) if S[6] < S[3] else S[3] + (S[6] - S[3]) * turn
+
+
 def vertical_row(start, end, s_centre: float, plane_zx: bool, rho: float, a0: float, sw: float,
                  tool: int) -> np.ndarray:
     """The row of a vertical arc from ``start`` (on its circle) to ``end`` (x, y, z, mm): in the ZX plane

@@ -110,11 +110,14 @@ def test_a_pass_retraced_lower_lies_under_the_first():
     PP, NPC, RR = lp.pieces[None], np.array([len(lp.pieces)]), np.array([lp.radius])
     own = line_row((-5, 0, -6), (20, 0, -6), 0)
     cell = (-20.0, -20.0, 30.0, 20.0)  # no sweep holds it: no ceiling
-    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 0, math.inf, np.empty(0))
+    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0,
+                                 0, math.inf, np.empty(0))
     assert keep.tolist() == [False, True, True, True]
-    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 10, math.inf, np.empty(0))
+    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0,
+                                 10, math.inf, np.empty(0))
     assert keep.all()  # as many as that: not looked for
-    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0, 0, 3, np.empty(0))
+    _, keep, _ = relevant_sweeps(*cell, own, lp.pieces, lp.radius, rows, PP, NPC, RR, -20.0, 0.0, 0.0,
+                                 0, 3, np.empty(0))
     assert keep.all()  # more than `most`: not looked for either (the caller quarters the cell)
 
 
