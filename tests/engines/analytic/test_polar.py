@@ -89,8 +89,8 @@ def test_a_bore_under_a_contours_floor_meets_only_its_own_turns(monkeypatch):
     out of them (.cells.footprint_ceiling); each CL going down dz then removes its closed form,
     pi ((rho + R)^2 - (rho - R)^2) dz."""
     R, rho, pitch = 1.325, 1.475, 0.5
-    passes = [LinearMove((x, -4.0, 5.0), (x, -4.0, -0.5), rapid=True, tool=1) for x in (0.75, 1.5)]
-    passes = [passes[0], LinearMove((0.75, -4.0, -0.5), (0.75, 8.0, -0.5), feed=600.0, tool=1),
+    passes = [LinearMove((0.75, -4.0, 5.0), (0.75, -4.0, -0.5), rapid=True, tool=1),
+              LinearMove((0.75, -4.0, -0.5), (0.75, 8.0, -0.5), feed=600.0, tool=1),
               LinearMove((0.75, 8.0, -0.5), (1.5, 8.0, -0.5), feed=600.0, tool=1),
               LinearMove((1.5, 8.0, -0.5), (1.5, -4.0, -0.5), feed=600.0, tool=1)]
     bore = _bore(rho, turns=6, pitch=pitch, decimals=3, z0=-0.5)
@@ -106,8 +106,7 @@ def test_a_bore_under_a_contours_floor_meets_only_its_own_turns(monkeypatch):
         assert m.removed_volume == pytest.approx(math.pi * ((rho + R) ** 2 - (rho - R) ** 2) * dz, rel=1e-7), m.cl_index
     rows.clear()
     _, maps = run(passes + bore[:8], {1: FlatEndMill(2 * R, 15)}, BoxStock((-6, -6, -6), (8, 10, 0)))
-    last = [r for r in rows[-3:]]
-    assert last and all((r[:, 0] == 1.0).all() for r in last)  # the last CLs' cells: the helix's arcs only
+    assert rows and all((r[:, 0] == 1.0).all() for r in rows[-3:])  # the last CLs' cells: the helix's arcs only
 
 
 @pytest.mark.parametrize("rho,decimals", [(0.375, None), (0.375, 3), (1.475, 3), (2.5, 4)])
