@@ -63,13 +63,8 @@ def _cull(x0, y0, x1, y1, rows, S, P, R, C, CB, PP, NPC, RR, zb, zt, cell_sweeps
             meet[m] = j
             m += 1
     meet = meet[:m]
-    Cm = np.empty((m, C.shape[1]))
-    footm = np.empty(m)
-    for i in range(m):
-        Cm[i] = C[meet[i]]
-        footm[i] = foot[meet[i]]
-    empty, keep, floors = relevant_sweeps(x0, y0, x1, y1, S, P, R, Cm, PP, NPC, RR, zb, zt, 0.0, cell_sweeps, most,
-                                          footm)
+    empty, keep, floors = relevant_sweeps(x0, y0, x1, y1, S, P, R, C[meet], PP, NPC, RR, zb, zt, 0.0, cell_sweeps,
+                                          most, foot[meet])
     return empty, meet[keep], floors[keep]
 
 
@@ -103,9 +98,7 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
         cx0, cy0, cx1, cy1, empty, keep, floors = stack.pop()
         if empty:
             continue
-        Ck = np.empty((keep.shape[0], C.shape[1]))
-        for i in range(keep.shape[0]):
-            Ck[i] = C[keep[i]]
+        Ck = C[keep]
         n = keep.shape[0]
         flat = flat_forms and all_level_flat(S, P, Ck, PP, NPC)
         polar = polar_forms and not flat and polar_applies(S, P, Ck, PP, NPC)
@@ -121,10 +114,7 @@ def volume_cells(x0, y0, x1, y1, tile, S, P, R, C, CB, PP, NPC, RR, zb, zt, min_
                                 foot)
                 any_empty = any_empty or e
                 if flat_forms and not flat and not polar and not e and k.shape[0] < n:
-                    Cq = np.empty((k.shape[0], C.shape[1]))
-                    for i in range(k.shape[0]):
-                        Cq[i] = C[k[i]]
-                    any_flat = any_flat or all_level_flat(S, P, Cq, PP, NPC)
+                    any_flat = any_flat or all_level_flat(S, P, C[k], PP, NPC)
                 quarters.append((qx0, qy0, qx1, qy1, e, k, f))
             shed = False
             if not flat and not polar and cx1 - cx0 > (R if flat_tool else 2.0 * R):
