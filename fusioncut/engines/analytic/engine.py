@@ -73,7 +73,7 @@ from fusioncut.engines.analytic.breaks import curves_at, sweep_curves, x_breaks
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below
 from fusioncut.engines.analytic.contact import N_SCAN, N_TOUCH, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.cylinder import side_area, side_range
-from fusioncut.engines.analytic.flat import flat_volume, is_level_flat
+from fusioncut.engines.analytic.flat import flat_cells_volume, is_level_flat
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
@@ -590,22 +590,20 @@ class AnalyticEngine:
         scale = scale or profile.radius
         if held_below(row, profile.radius, C, P, NP, RR):
             return 0.0, tuple(bands)  # retraced above a deeper pass that holds its whole footprint
-        total = 0.0
         cells, kinds, starts, items = volume_cells(x0, y0, x1, y1, TILE_RADII * scale, row, profile.pieces,
                                                    profile.radius, C, CB, P, NP, RR, s[2], s[5],
                                                    MIN_CELL_RADII * scale, CELL_SWEEPS, FLAT_SWEEPS, POLAR_SWEEPS,
                                                    DOMINANCE_MOST, FLAT_FORMS, POLAR_FORMS)
+        flat = kinds == FLAT
+        total, flat_bands = flat_cells_volume(cells, flat, starts, items, row, profile.pieces, profile.radius, C, CB,
+                                              P, NP, RR, s[2], s[5], edges)
+        bands += flat_bands
         adaptive = []  # the cells to integrate adaptively, with their sweeps and boundary curves
-        for (cx0, cy0, cx1, cy1), kind, a, b in zip(cells.tolist(), kinds.tolist(), starts[:-1], starts[1:]):
-            Ct, CBt = C[items[a:b]], CB[items[a:b]]
+        for i in np.flatnonzero(~flat):
+            (cx0, cy0, cx1, cy1), rows = cells[i].tolist(), items[starts[i]:starts[i + 1]]
+            Ct, CBt = C[rows], CB[rows]
             circles, segments = self._curves(np.vstack([row[None, :], Ct]), P, NP)
-            if kind == FLAT:
-                v, vb = flat_volume(cx0, cx1, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct,
-                                    CBt, P, NP, RR, s[2], s[5], edges)
-                total += v
-                bands += vb
-            else:
-                adaptive.append((cx0, cy0, cx1, cy1, Ct, CBt, circles, segments, kind == POLAR))
+            adaptive.append((cx0, cy0, cx1, cy1, Ct, CBt, circles, segments, kinds[i] == POLAR))
         if adaptive:
             # the CL's relative budget shared by area, the cells likely to hold the most volume first: each
             # stops at the loosest of volume_tol per mm² of it, volume_rel of its own volume and volume_rel of

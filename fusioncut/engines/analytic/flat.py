@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from fusioncut.engines.analytic.breaks import curve_meetings_x, edge_crossings
+from fusioncut.engines.analytic.breaks import curve_meetings_x, edge_crossings, sweep_curves
 from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat
 from fusioncut.engines.analytic.volume import _band_overlaps, height_and_cause
 
@@ -168,6 +168,29 @@ def flat_volume(x0, x1, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR
             total += v * areas[i]
             if nb > 0:
                 _band_overlaps(max(own, zb), v, edges, bands, areas[i])
+    return total, bands
+
+
+@njit(cache=True)
+def flat_cells_volume(cells, which, starts, items, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges):
+    """(the volume removed over the cells ``which`` marks, mm³; its parts within the bands of ``edges``):
+    :func:`flat_volume` of each, in order, with its sweeps ``C[items[starts[i]:starts[i + 1]]]`` and their
+    boundary curves with the CL's (:func:`.breaks.sweep_curves` about ``zb`` and ``zt``), as
+    :func:`.partition.volume_cells` gives them. One kernel for all of a CL's closed-form cells."""
+    bands = np.zeros(max(edges.shape[0] - 1, 0))
+    total = 0.0
+    for i in range(cells.shape[0]):
+        if not which[i]:
+            continue
+        keep = items[starts[i]:starts[i + 1]]
+        rows = np.empty((keep.shape[0] + 1, C.shape[1]))
+        rows[0] = S
+        rows[1:] = C[keep]
+        circles, segments = sweep_curves(rows, PP, NPC, zb, zt)
+        v, vb = flat_volume(cells[i, 0], cells[i, 2], cells[i, 1], cells[i, 3], circles, segments, S, P, R, rows[1:],
+                            CB[keep], PP, NPC, RR, zb, zt, edges)
+        total += v
+        bands += vb
     return total, bands
 
 

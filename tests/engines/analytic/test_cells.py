@@ -219,9 +219,10 @@ def _integrated_rows(monkeypatch, key) -> list:
     """A list that gets ``key`` of the CL's sweep row for every cell whose removed volume is integrated,
     adaptively (.volume) or in closed form (.flat)."""
     integrals = []
-    adaptive, closed = analytic.removed_volume, analytic.flat_volume
+    adaptive, closed = analytic.removed_volume, analytic.flat_cells_volume
     monkeypatch.setattr(analytic, "removed_volume", lambda *a: integrals.append(key(a[5])) or adaptive(*a))
-    monkeypatch.setattr(analytic, "flat_volume", lambda *a: integrals.append(key(a[6])) or closed(*a))
+    monkeypatch.setattr(analytic, "flat_cells_volume", lambda *a: (a[1].any() and integrals.append(key(a[4])))
+                        or closed(*a))
     return integrals
 
 

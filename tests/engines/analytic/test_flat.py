@@ -49,12 +49,12 @@ def _level_program(seed: int, decimals: int | None) -> list:
 def _both_ways(monkeypatch, moves, tools, stock, **opts):
     """The maps in closed form where .flat applies, and with every cell integrated adaptively."""
     calls = []
-    closed = analytic.flat_volume
-    monkeypatch.setattr(analytic, "flat_volume", lambda *a: calls.append(1) or closed(*a))
+    closed = analytic.flat_cells_volume
+    monkeypatch.setattr(analytic, "flat_cells_volume", lambda *a: calls.append(int(a[1].sum())) or closed(*a))
     _, flat_maps = run(moves, tools, stock, **opts)
     monkeypatch.setattr(analytic, "FLAT_FORMS", False)
     _, adaptive_maps = run(moves, tools, stock, **opts)
-    return flat_maps, adaptive_maps, len(calls)
+    return flat_maps, adaptive_maps, sum(calls)
 
 
 @pytest.mark.parametrize("seed,decimals", [(1, None), (2, 3), (3, 3), (4, 4)])
