@@ -73,7 +73,7 @@ from fusioncut.engines.analytic.breaks import curves_at, sweep_curves, x_breaks
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below
 from fusioncut.engines.analytic.contact import N_SCAN, N_TOUCH, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.cylinder import side_area, side_range
-from fusioncut.engines.analytic.flat import flat_cells_volume, is_level_flat
+from fusioncut.engines.analytic.flat import all_constant_lowers, flat_cells_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
@@ -426,7 +426,7 @@ class AnalyticEngine:
             # a flat end mill's level CL among flat cuts of one height each: the slices between the same two
             # heights where material can begin or end hold the same arcs (.contact: a point's material and
             # front tests compare its height only with those), so each band is scanned once
-            banded = _constant_lowers(row, profile.pieces, args[3][near], self._tools.profiles, self._tools.counts)
+            banded = all_constant_lowers(row, profile.pieces, args[3][near], self._tools.profiles, self._tools.counts)
             bounds = np.array(sorted({self.stock[2], *levels})) if banded else None
             scanned: dict[int, list[tuple[float, float]]] = {}
             for z, active in heights:
@@ -644,8 +644,8 @@ def _narrow_neck(tool: MillingTool, profile: LowerProfile, touching: tuple[float
 
 def _union(boxes) -> tuple[float, float, float, float]:
     """The box (x0, y0, x1, y1) holding every box of ``boxes``."""
-    bs = np.array(list(boxes)).reshape(-1, 4)
-    return (float(bs[:, 0].min()), float(bs[:, 1].min()), float(bs[:, 2].max()), float(bs[:, 3].max()))
+    x0s, y0s, x1s, y1s = zip(*boxes)
+    return float(min(x0s)), float(min(y0s)), float(max(x1s)), float(max(y1s))
 
 
 def _with_own(C: np.ndarray, CB: np.ndarray, parts: list[PartSweep]) -> tuple[np.ndarray, np.ndarray]:
@@ -653,15 +653,6 @@ def _with_own(C: np.ndarray, CB: np.ndarray, parts: list[PartSweep]) -> tuple[np
     if not parts:
         return C, CB
     return np.vstack([C, *(p.row[None, :] for p in parts)]), np.vstack([CB, np.array([p.box for p in parts])])
-
-
-def _constant_lowers(row: np.ndarray, pieces: np.ndarray, rows: np.ndarray, P: np.ndarray, NP: np.ndarray) -> bool:
-    """Whether the CL's sweep ``row`` and each sweep of ``rows`` are a flat end mill's with one lower surface
-    height over the footprint: a level line or arc, or a plunge (its lower end); or a round bar's outside."""
-    def constant(r: np.ndarray, pc: np.ndarray) -> bool:
-        return is_level_flat(r, pc) or (r[0] == LINE and r[1] == r[4] and r[2] == r[5] and is_flat(pc))
-
-    return constant(row, pieces) and all(constant(r, P[int(r[12]), :NP[int(r[12])]]) for r in rows)
 
 
 def _band(z: float, bounds: np.ndarray) -> int | None:

@@ -51,6 +51,25 @@ def all_level_flat(S, P, C, PP, NPC) -> bool:
     return True
 
 
+@njit(cache=True)
+def all_constant_lowers(S, P, C, PP, NPC) -> bool:
+    """Whether the CL's sweep ``S`` (profile ``P``) and each sweep of ``C`` are a flat end mill's with one lower
+    surface height over the footprint: a level line or arc, or a plunge (its lower end); or a round bar's
+    outside."""
+    if not _constant_lower(S, P):
+        return False
+    for j in range(C.shape[0]):
+        k = int(C[j, 12])
+        if not _constant_lower(C[j], PP[k, :NPC[k]]):
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _constant_lower(S, P) -> bool:
+    return is_level_flat(S, P) or (S[0] == LINE and S[1] == S[4] and S[2] == S[5] and is_flat(P))
+
+
 @njit(cache=True, inline="always")
 def _half_disk(u, r):
     """integral over [0, u] of sqrt(r^2 - v^2) dv (|u| <= r). Near a tangent (|u| close to r) ``r^2 - u^2``

@@ -194,7 +194,8 @@ class SweepIndex:
         b = self.boxes[found]
         keep = ((b[:, 0] <= box[2]) & (b[:, 2] >= box[0]) & (b[:, 1] <= box[3]) & (b[:, 3] >= box[1])
                 & (self.z_low[found] < z_max) & self.alive[found])
-        return np.unique(found[keep])
+        found = np.sort(found[keep])  # unique: a row met in several bins comes once per bin
+        return found[np.concatenate(([True], found[1:] != found[:-1]))] if found.size else found
 
 
 def continues(last: np.ndarray, row: np.ndarray) -> bool:
@@ -207,11 +208,13 @@ def continues(last: np.ndarray, row: np.ndarray) -> bool:
     if abs(last[4] - row[1]) > 1e-12 or abs(last[5] - row[2]) > 1e-12 or abs(last[6] - row[3]) > 1e-12:
         return False
     if row[0] == 0.0:
-        u, v = last[4:7] - last[1:4], row[4:7] - row[1:4]
-        nu, nv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+        ux, uy, uz = (float(last[4] - last[1]), float(last[5] - last[2]), float(last[6] - last[3]))
+        vx, vy, vz = (float(row[4] - row[1]), float(row[5] - row[2]), float(row[6] - row[3]))
+        nu, nv = math.sqrt(ux * ux + uy * uy + uz * uz), math.sqrt(vx * vx + vy * vy + vz * vz)
         if nu == 0.0 or nv == 0.0:
             return False
-        return bool(np.linalg.norm(np.cross(u, v)) <= 1e-12 * nu * nv and u.dot(v) > 0)
+        cross = math.sqrt((uy * vz - uz * vy) ** 2 + (uz * vx - ux * vz) ** 2 + (ux * vy - uy * vx) ** 2)
+        return cross <= 1e-12 * nu * nv and ux * vx + uy * vy + uz * vz > 0
     if last[7] != row[7] or last[8] != row[8] or abs(last[9] - row[9]) > 1e-12 * max(1.0, last[9]):
         return False
     if last[11] * row[11] <= 0:
