@@ -165,11 +165,13 @@ def material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
 
 
 @njit(cache=True)
-def sweep_grid(x0, y0, width, n, S, P, R, C, PP, NPC, RR, zb, zt, eps):
+def sweep_grid(x0, y0, width, n, S, P, R, C, PP, NPC, RR, zb, zt, eps, ring_in=0.0, ring_out=math.inf):
     """(G, gstart, gitems): the square (x0, y0) + [0, width]² cut into ``n`` x ``n`` cells, and per
     cell the rows of ``C`` that can give the least lower surface in it (:func:`.cells.relevant_sweeps`,
     footprints widened by ``eps``); a point then meets only its cell's sweeps. Points outside the
-    square take the nearest cell: callers keep them inside.
+    square take the nearest cell: callers keep them inside. Only the cells meeting the ring between
+    ``ring_in`` and ``ring_out`` mm from the square's centre get their sweeps (a flat end mill's slices
+    all lie on the circle of its radius): a point queried elsewhere would meet none.
 
     A block of cells is quartered (halved along a side one cell wide) down to single cells, each part
     starting from the sweeps its block kept: one left out of a block can shape the material in none of
@@ -177,8 +179,11 @@ def sweep_grid(x0, y0, width, n, S, P, R, C, PP, NPC, RR, zb, zt, eps):
     w = width / n
     items = [np.empty(0, dtype=np.int64) for _ in range(n * n)]
     stack = [(0, n, 0, n, np.arange(C.shape[0]))]
+    cx, cy = x0 + 0.5 * width, y0 + 0.5 * width
     while len(stack) > 0:
         i0, i1, j0, j1, rows = stack.pop()
+        if not _meets_ring(x0 + i0 * w - cx, y0 + j0 * w - cy, x0 + i1 * w - cx, y0 + j1 * w - cy, ring_in, ring_out):
+            continue
         single = i1 - i0 == 1 and j1 - j0 == 1
         keep = relevant_sweeps(x0 + i0 * w, y0 + j0 * w, x0 + i1 * w, y0 + j1 * w, S, P, R, C[rows], PP, NPC, RR, zb,
                                zt, eps, MANY, math.inf if single else DOMINANCE_MOST, NO_FOOT)[1]
@@ -201,6 +206,15 @@ def sweep_grid(x0, y0, width, n, S, P, R, C, PP, NPC, RR, zb, zt, eps):
     G = np.empty(4)
     G[0], G[1], G[2], G[3] = x0, y0, w, n
     return G, starts, flat
+
+
+@njit(cache=True, inline="always")
+def _meets_ring(bx0, by0, bx1, by1, r_in, r_out):
+    """Whether the box [bx0, bx1] x [by0, by1] (about the origin) meets the ring between the radii ``r_in``
+    and ``r_out``: its nearest point is within ``r_out`` and its farthest corner beyond ``r_in``."""
+    nx, ny = max(bx0, 0.0, -bx1), max(by0, 0.0, -by1)
+    fx, fy = max(abs(bx0), abs(bx1)), max(abs(by0), abs(by1))
+    return nx * nx + ny * ny <= r_out * r_out and fx * fx + fy * fy >= r_in * r_in
 
 
 @njit(cache=True, inline="always")

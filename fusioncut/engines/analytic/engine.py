@@ -524,8 +524,10 @@ class AnalyticEngine:
                   & (CB[:, 3] >= ey - reach))
         Ce, CBe = C[at_end], CB[at_end]
         t = self._tools
+        # a flat profile's slices all lie on the circle of its radius: only the grid's cells on it are filled
+        ring = (R - 2 * WALL_EPS, reach) if is_flat(part.profile.pieces) else (0.0, math.inf)
         grid = sweep_grid(ex - reach, ey - reach, 2 * reach, END_GRID, row, part.profile.pieces, R, Ce, t.profiles,
-                          t.counts, t.radii, s[2], s[5], 2 * WALL_EPS)
+                          t.counts, t.radii, s[2], s[5], 2 * WALL_EPS, *ring)
         near = np.unique(grid[2])
         # the footprints' edges (walls): the boundary curves at each sweep's tool radius
         shaping = Ce[near]

@@ -110,3 +110,40 @@ def test_a_tangential_onset_is_found_by_halving_where_the_margin_below_it_is_rou
     lo, hi = contact.contact_range(args, 0.0, 4.0, 1.0, [])
     assert abs(lo - onset) <= contact.Z_TOL and hi == 4.0
     assert len(calls) <= 50
+
+
+def test_a_grid_filled_on_a_ring_answers_on_its_circle_as_the_whole_grid():
+    """The end grid of a flat end mill (R = 2) filled only on the ring of its radius (as the engine builds it for a
+    flat profile, whose slices all lie on that circle): at 4,000 points of the circle at random heights the
+    material test is the full grid's, and the cells wholly inside or outside the ring hold no sweeps."""
+    PP, NPC, RR = _tools()
+    C = np.array([
+        line_row((-15.0, -2.0, -3.0), (15.0, -2.0, -3.0), 0),
+        line_row((-15.0, 4.0, -1.0), (15.0, 5.0, -4.0), 0),
+        line_row((-3.0, -15.0, -6.0), (2.0, 15.0, -2.0), 2),
+        line_row((1.0, -10.0, -2.0), (1.0, 10.0, -2.0), 1),
+        arc_row((-1.0, 0.0, -5.0), (-1.0, 0.0, -3.0), (-3.0, 0.0), 2.0, 0.0, 2.0 * math.pi, 1),
+    ])
+    reach = [RR[int(r[12])] + 2 * EPS for r in C]
+    CB = np.array([[min(r[1], r[4]) - e, min(r[2], r[5]) - e, max(r[1], r[4]) + e, max(r[2], r[5]) + e]
+                   for r, e in zip(C, reach)])
+    CB[4] = [-3.0 - 2.0 - reach[4], -2.0 - reach[4], -3.0 + 2.0 + reach[4], 2.0 + reach[4]]
+    R, ex, ey = 2.0, 0.5, 0.25
+    S = line_row((-2.0, ey, -2.5), (ex, ey, -2.5), 1)
+    side = R + 2 * EPS
+    args = (ex - side, ey - side, 2 * side, 8, S, PP[1, :NPC[1]], R, C, PP, NPC, RR, STOCK[2], STOCK[5], 2 * EPS)
+    whole, ring = sweep_grid(*args), sweep_grid(*args, R - 2 * EPS, side)
+    assert ring[2].size < whole[2].size
+    w = ring[0][2]
+    for i in range(8):
+        for j in range(8):
+            x0, y0 = (i * w - side, (i + 1) * w - side), (j * w - side, (j + 1) * w - side)  # about the centre
+            far = math.hypot(max(map(abs, x0)), max(map(abs, y0)))
+            near = math.hypot(max(x0[0], 0.0, -x0[1]), max(y0[0], 0.0, -y0[1]))
+            if far < R - 1e-9 or near > R + 1e-9:
+                assert ring[1][i * 8 + j + 1] == ring[1][i * 8 + j], (i, j)  # a cell off the ring: no sweeps
+    rng = np.random.default_rng(3)
+    for t, pz in zip(rng.uniform(0.0, 2 * math.pi, 4000), rng.uniform(-8.0, 0.5, 4000)):
+        x, y = ex + R * math.cos(t), ey + R * math.sin(t)
+        assert material_at(x, y, pz, C, CB, PP, NPC, RR, STOCK, EPS, *ring) == \
+            material_at(x, y, pz, C, CB, PP, NPC, RR, STOCK, EPS, *whole), (t, pz)
