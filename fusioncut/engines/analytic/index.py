@@ -30,6 +30,7 @@ import math
 from collections import defaultdict
 
 import numpy as np
+from numba import njit
 
 from fusioncut.engines.analytic.profile import LowerProfile
 from fusioncut.engines.analytic.sweeps import NCOL
@@ -189,13 +190,27 @@ class SweepIndex:
                     if got is not None:
                         parts.append(got[0][:got[1]])
             found = np.concatenate(parts)  # a row met in several bins comes once per bin: made unique last
-        if found.size == 0:
-            return found
-        b = self.boxes[found]
-        keep = ((b[:, 0] <= box[2]) & (b[:, 2] >= box[0]) & (b[:, 1] <= box[3]) & (b[:, 3] >= box[1])
-                & (self.z_low[found] < z_max) & self.alive[found])
-        found = np.sort(found[keep])  # unique: a row met in several bins comes once per bin
-        return found[np.concatenate(([True], found[1:] != found[:-1]))] if found.size else found
+        return _meeting(found, self.boxes, self.z_low, self.alive, *box, z_max)
+
+
+@njit(cache=True)
+def _meeting(found, boxes, z_low, alive, x0, y0, x1, y1, z_max):
+    """The rows of ``found`` (a row may come more than once) that are alive, whose box meets [x0, x1] x [y0, y1]
+    and whose lowest point is below ``z_max``: ascending, each once."""
+    keep = np.empty(found.shape[0], dtype=np.int64)
+    n = 0
+    for k in found:
+        b = boxes[k]
+        if alive[k] and b[0] <= x1 and b[2] >= x0 and b[1] <= y1 and b[3] >= y0 and z_low[k] < z_max:
+            keep[n] = k
+            n += 1
+    keep = np.sort(keep[:n])
+    m = 0
+    for i in range(n):
+        if i == 0 or keep[i] != keep[i - 1]:
+            keep[m] = keep[i]
+            m += 1
+    return keep[:m]
 
 
 def continues(last: np.ndarray, row: np.ndarray) -> bool:
