@@ -48,7 +48,7 @@ from fusioncut.engines.analytic.brent import GOLDEN
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, relevant_sweeps
 from fusioncut.engines.analytic.polar import ring_breaks
 from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope
-from fusioncut.engines.analytic.sweeps import (OUTSIDE, arc_holds, end_velocity, floor_within, segment_nearest,
+from fusioncut.engines.analytic.sweeps import (LINE, OUTSIDE, arc_holds, end_velocity, floor_within, segment_nearest,
                                                sweep_floor, sweep_lower)
 from fusioncut.engines.analytic.vertical import is_vertical, vertical_lower
 
@@ -546,13 +546,14 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
                   ) -> tuple[float, float] | None:
     """The height range (mm above the tip) between ``bottom`` and ``top`` where the tool at the end
     of ``args``' sweep touches material (``args`` as :func:`.contact.slice_arcs` takes them, less the
-    height, radius, slope and scan count: its first 13), or None: the flutes' contact with ``(0, flute length)``, the shank's
-    with ``(flute length, inf)``.
+    height, radius, slope and scan count: its first 13), or None: the flutes' contact with ``(0, flute
+    length)``, the shank's with ``(flute length, inf)``.
 
     The candidate heights are every quarter of ``dz`` and just above and below each machine height
     of ``levels`` (the stock's top, the earlier sweeps' ends), within the range and the stock's
     height. The lowest touching candidate is found walking up from the bottom, the highest walking
-    down from the top (the heights between them are not tested); the change from its untouched
+    down from the top (the heights between them are not tested; on a line's wall, the candidates within
+    a slice's negative margin below it are passed over); the change from its untouched
     neighbour is found to :data:`Z_TOL` by the Illinois variant of regula falsi on the slice's
     material margin (:func:`.contact.slice_margin`, positive where it touches), every fourth step
     a halving so that the bracket shrinks however the margin bends, and a halving too where an
@@ -590,7 +591,20 @@ def contact_range(args: tuple, bottom: float, top: float, dz: float, levels: lis
     first = next((i for i, z in enumerate(grid) if touches(z)), None)
     if first is None:
         return None
-    last = next(i for i in range(len(grid) - 1, first - 1, -1) if i == first or touches(grid[i]))
+    # above the profile (the tool's wall) a line's slices are one circle and one front, and each point's margin
+    # grows by no more than the height drops (its lower surfaces and the stock's faces do not move with it):
+    # below a slice there of margin -m no slice within m holds material, and its candidates are passed over
+    wall = profile_height(pieces, args[2]) if row[0] == LINE else math.inf
+    last = len(grid) - 1
+    while last > first:
+        m = margin(grid[last])
+        if m > 0.0:
+            break
+        below = last - 1
+        if grid[last] >= wall and math.isfinite(m):
+            while below > first and grid[below] >= wall and grid[below] >= grid[last] + m:
+                below -= 1
+        last = below
 
     def edge(a: float, b: float) -> float:
         fa, fb = margin(a), margin(b)

@@ -147,3 +147,43 @@ def test_a_grid_filled_on_a_ring_answers_on_its_circle_as_the_whole_grid():
         x, y = ex + R * math.cos(t), ey + R * math.sin(t)
         assert material_at(x, y, pz, C, CB, PP, NPC, RR, STOCK, EPS, *ring) == \
             material_at(x, y, pz, C, CB, PP, NPC, RR, STOCK, EPS, *whole), (t, pz)
+
+
+def test_the_contact_range_passes_over_a_wall_s_untouched_heights_as_the_walk_finds_them(monkeypatch):
+    """A ball end mill's level raster 0.3 mm under a flat end mill's pocket floor, 20 mm below the stock's top,
+    beside a shelf the flat end mill left 3 mm higher (the ball's wall touches it up to 3.3 mm above the tip):
+    the contact's height range, slices and areas with the wall's candidates passed over are those of the walk
+    down every candidate (the wall's start taken as infinite)."""
+    from fusioncut.engines.analytic import contact
+    from fusioncut.engines.analytic import engine as analytic
+    from fusioncut.model import BoxStock, LinearMove
+    from tests.engines.analytic.test_engine import feed, run
+
+    moves = [LinearMove((-12.0, -6.0, 5.0), (-12.0, -6.0, -20.0), rapid=True, tool=1)]
+    for k, (y, z) in enumerate(((-6.0, -20.0), (-3.0, -20.0), (0.0, -20.0), (7.0, -17.0))):  # floor, then shelf
+        a, b = (-12.0, y, z), (12.0, y, z)
+        moves.append(feed(moves[-1].end, (a, b)[k % 2]) if k else None)
+        moves.append(feed(*((a, b) if k % 2 == 0 else (b, a))))
+    moves = [m for m in moves if m is not None]
+    moves.append(LinearMove(moves[-1].end, (-8.0, -3.0, 5.0), rapid=True, tool=1))
+    moves.append(LinearMove((-8.0, -3.0, 5.0), (-8.0, -3.0, -20.3), rapid=True, tool=2))
+    for k, y in enumerate((-3.0, -1.0, 1.0, 3.0)):  # the ball's raster, 1 mm moves
+        xs = np.arange(-8.0, 8.01, 1.0)
+        xs = xs if k % 2 == 0 else xs[::-1]
+        if k:
+            moves.append(feed(moves[-1].end, (xs[0], y, -20.3), tool=2))
+        moves += [feed((x0, y, -20.3), (x1, y, -20.3), tool=2) for x0, x1 in zip(xs[:-1], xs[1:])]
+    tools = {1: FlatEndMill(8.0, 30.0), 2: BallEndMill(4.0, 30.0)}
+    stock = BoxStock((-15.0, -10.0, -30.0), (15.0, 10.0, 0.0))
+    calls = []
+    walk = analytic.contact_range
+    monkeypatch.setattr(analytic, "contact_range", lambda *a: calls.append(1) or walk(*a))
+    _, passed = run(moves, tools, stock, slice_height=1.0)
+    monkeypatch.setattr(contact, "profile_height", lambda P, d: math.inf)
+    _, walked = run(moves, tools, stock, slice_height=1.0)
+    ball = [(a, b) for a, b in zip(passed, walked, strict=True) if a.tool == walked[-1].tool and b.removed_volume > 0]
+    assert len(ball) > 40 and len(calls) > 40
+    assert max(b.axial_range[1] for a, b in ball) > 3.0  # the shelf's wall, on the ball's wall
+    for a, b in ball:
+        assert a.axial_range == b.axial_range and a.contact_area == b.contact_area, a.cl_index
+        assert [s.intervals for s in a.slices] == [s.intervals for s in b.slices], a.cl_index
