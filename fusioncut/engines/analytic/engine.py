@@ -73,7 +73,7 @@ from fusioncut.engines.analytic.breaks import curves_at, sweep_curves, x_breaks
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, held_below
 from fusioncut.engines.analytic.contact import N_SCAN, N_TOUCH, contact_range, slice_arcs, sweep_grid
 from fusioncut.engines.analytic.cylinder import side_area, side_range
-from fusioncut.engines.analytic.flat import all_constant_lowers, flat_cells_volume
+from fusioncut.engines.analytic.flat import all_level_flat, flat_cells_volume
 from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, ipw_mesh
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
@@ -426,7 +426,8 @@ class AnalyticEngine:
             # a flat end mill's level CL among flat cuts of one height each: the slices between the same two
             # heights where material can begin or end hold the same arcs (.contact: a point's material and
             # front tests compare its height only with those), so each band is scanned once
-            banded = all_constant_lowers(row, profile.pieces, args[3][near], self._tools.profiles, self._tools.counts)
+            banded = all_level_flat(row, profile.pieces, args[3][near], self._tools.profiles, self._tools.counts,
+                                    plunges=True)
             bounds = np.array(sorted({self.stock[2], *levels})) if banded else None
             scanned: dict[int, list[tuple[float, float]]] = {}
             for z, active in heights:

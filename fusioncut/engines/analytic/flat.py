@@ -40,34 +40,22 @@ def is_level_flat(S, P) -> bool:
 
 
 @njit(cache=True)
-def all_level_flat(S, P, C, PP, NPC) -> bool:
-    """Whether the CL's sweep ``S`` (profile ``P``) and every earlier sweep of ``C`` are level and flat."""
-    if not is_level_flat(S, P):
+def all_level_flat(S, P, C, PP, NPC, plunges=False) -> bool:
+    """Whether the CL's sweep ``S`` (profile ``P``) and every earlier sweep of ``C`` are level and flat
+    (:func:`is_level_flat`); with ``plunges``, a flat end mill's plunge counts too (one lower surface
+    height over its footprint, its lower end's)."""
+    if not _level_flat(S, P, plunges):
         return False
     for j in range(C.shape[0]):
         k = int(C[j, 12])
-        if not is_level_flat(C[j], PP[k, :NPC[k]]):
-            return False
-    return True
-
-
-@njit(cache=True)
-def all_constant_lowers(S, P, C, PP, NPC) -> bool:
-    """Whether the CL's sweep ``S`` (profile ``P``) and each sweep of ``C`` are a flat end mill's with one lower
-    surface height over the footprint: a level line or arc, or a plunge (its lower end); or a round bar's
-    outside."""
-    if not _constant_lower(S, P):
-        return False
-    for j in range(C.shape[0]):
-        k = int(C[j, 12])
-        if not _constant_lower(C[j], PP[k, :NPC[k]]):
+        if not _level_flat(C[j], PP[k, :NPC[k]], plunges):
             return False
     return True
 
 
 @njit(cache=True, inline="always")
-def _constant_lower(S, P) -> bool:
-    return is_level_flat(S, P) or (S[0] == LINE and S[1] == S[4] and S[2] == S[5] and is_flat(P))
+def _level_flat(S, P, plunges) -> bool:
+    return is_level_flat(S, P) or (plunges and S[0] == LINE and S[1] == S[4] and S[2] == S[5] and is_flat(P))
 
 
 @njit(cache=True, inline="always")
