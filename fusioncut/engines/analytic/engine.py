@@ -17,8 +17,9 @@ wall. Nothing is built or kept but the sweeps themselves (one row each, :mod:`.i
   holds removes nothing and is not integrated (:func:`.cells.held_below`); a cell where the CL and
   every sweep shaping it are level flat cuts is not integrated but computed in closed form
   (:mod:`.flat`), and quartered only beyond :data:`FLAT_SWEEPS` of them; where the CL is a flat end
-  mill's arc or helix and every sweep shaping the cell is on its axis or level, the inner integral
-  runs over the angle about the axis, in closed form (:mod:`.polar`);
+  mill's arc or helix and every sweep shaping the cell is on its axis or level, or the CL is level and
+  the sweeps shaping the cell are level or on the axis of an earlier helix (a helical entry's ledge),
+  the inner integral runs over the angle about the axis, in closed form (:mod:`.polar`);
 * its **engagement** is found slice by slice on the tool at the CL's end (:mod:`.contact`): arcs
   where material was before the CL and the tool's surface is on the sweep's front, their ends
   bisected to 1e-10 rad; the slices are laid out and converted to immersion angles as the B-Rep

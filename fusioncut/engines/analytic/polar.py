@@ -1,36 +1,41 @@
-"""Volume a flat end mill's arc or helix removes where the sweeps shaping it share its axis or are
-level: the inner integral over the angle about the axis in closed form.
+"""Volume a flat end mill removes where the sweeps shaping it share one axis or are level: the inner
+integral over the angle about the axis in closed form.
 
-Machine frame, mm, radians. In polar coordinates ``(r, theta)`` about the centre of the CL's arc, a
-flat end mill's arc or helix about the same centre (radius ``rho``, angles ``[lo, hi]``, tip height
-linear in the angle) holds the point at ``(r, theta)`` from the path angles within ``alpha(r)`` of
-``theta`` (``cos alpha = (rho^2 + r^2 - R^2) / (2 rho r)``), and its lower surface there is the tip
+Machine frame, mm, radians. The axis is the centre of the CL's arc or helix; for a level CL (a level
+line, a plunge), that of an earlier helix or ramped arc (a helical entry whose last turn left a ramped
+ledge that the level cuts after it meet: :func:`polar_axis`). In polar coordinates ``(r, theta)`` about
+it, a flat end mill's arc or helix about the same centre (radius ``rho``, angles ``[lo, hi]``, tip
+height linear in the angle) holds the point at ``(r, theta)`` from the path angles within ``alpha(r)``
+of ``theta`` (``cos alpha = (rho^2 + r^2 - R^2) / (2 rho r)``), and its lower surface there is the tip
 height at one end of those angles within ``[lo, hi]``: **linear in theta** (or constant) between the
 angles where an end of the window meets an end of the arc, ``theta = e +- alpha(r)`` (``e`` an end, or
 an end a turn in: a helix of more than a turn is lowest on its last turn, :mod:`.sweeps`); the removed
 height bends where that surface crosses the stock's top or bottom or a level sweep's height, which is
-where the window's end meets the path angle ``e`` at that height: those are ends too (:func:`_axial`).
-A level sweep, a plunge and a round bar's outside have one constant lower surface over their footprint,
-which the circle of radius ``r`` enters and leaves where it crosses their boundary curves
-(:func:`.breaks.boundary_curves`). So along that circle, between the angles where any of that
+where the window's end meets the path angle ``e`` at that height: those are ends too (:func:`_axial`). A
+level sweep, a plunge and a round bar's outside (and a level CL) have one constant lower surface over
+their footprint, which the circle of radius ``r`` enters and leaves where it crosses their boundary
+curves (:func:`.breaks.boundary_curves`). So along that circle, between the angles where any of that
 happens or the circle crosses a cell's edge (:func:`ring_breaks`), every lower surface is linear in
 ``theta``, and the removed height ``max(0, min(h, z_top) - max(L, z_bottom))`` (:mod:`.volume`) is
-piecewise linear with corners where two of those lines cross, found in closed form: its integral
-over the angle is exact (trapezoids between the corners, :func:`ring_integral`), and so are its parts
-within each band of heights (corners where a surface crosses a band's edge).
+piecewise linear with corners where two of those lines cross, found in closed form: its integral over
+the angle is exact (trapezoids between the corners, :func:`ring_integral`), and so are its parts within
+each band of heights (corners where a surface crosses a band's edge).
 
-A surface is taken linear on an interval from its values at the interval's thirds, extrapolated to
-its ends: exact for a linear function, to a few units of round-off.
+A surface is taken linear on an interval from its values at the interval's thirds, extrapolated to its
+ends: exact for a linear function, to a few units of round-off.
 
 The outer integral over ``r`` is adaptive Gauss-Kronrod (7, 15) with a global budget, as
 :func:`.volume.removed_volume`'s, with the map of :func:`.volume._smooth` on each part (the circle's
 crossings move like a square root near a tangency), between the radii where the structure along the
 circle changes (:func:`polar_volume`): where it touches a curve or passes a corner of the cell or a
-meeting of two curves, where ``alpha`` starts or ends (``r = |rho - R|``, ``rho + R``), and where two
-ends' angles ``e_i + alpha`` and ``e_j - alpha`` of arcs with one ``rho`` and ``R`` meet
-(``alpha = (e_j - e_i) / 2``, in closed form). Where arcs with other radii meet so, the bend is left to
-the rule's error estimate, as :mod:`.volume` leaves a kink between its probes to its own. The radii an
-earlier helix of a turn or more holds below the CL's lowest tip are skipped (:func:`held_annuli`).
+meeting of two curves at a point near which the CL can remove something (:func:`_removes_near`: in its
+footprint, held by no level sweep at or below its lowest tip; elsewhere the integrand is zero around the
+point, and so is what the change there does to it), where ``alpha`` starts or ends (``r = |rho - R|``,
+``rho + R``), and where two ends' angles ``e_i + alpha`` and ``e_j - alpha`` of arcs with one ``rho``
+and ``R`` meet (``alpha = (e_j - e_i) / 2``, in closed form). Where arcs with other radii meet so, the
+bend is left to the rule's error estimate, as :mod:`.volume` leaves a kink between its probes to its
+own. The radii an earlier helix of a turn or more holds below the CL's lowest tip are skipped
+(:func:`held_annuli`).
 """
 from __future__ import annotations
 
@@ -40,7 +45,8 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.breaks import curve_meetings_x, edge_crossings
-from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat, lowest_turn_top, sweep_lower
+from fusioncut.engines.analytic.sweeps import (ARC, LINE, OUTSIDE, is_flat, lowest_turn_top, point_path_distance,
+                                               sweep_lower)
 from fusioncut.engines.analytic.volume import _PANELS, _error, _node, _smooth, next_split
 
 AXIS_TOL = 1e-10  # mm: arcs whose centres are this close share the CL's axis
@@ -64,18 +70,40 @@ def _level_flat(S):
 
 
 @njit(cache=True)
-def polar_applies(S, P, C, PP, NPC) -> bool:
-    """Whether the CL's sweep ``S`` (profile ``P``) is a flat end mill's arc or helix and every sweep
-    of ``C`` is flat and either on its axis (:data:`AXIS_TOL`) or level (module docstring)."""
-    if not (S[0] == ARC and S[9] > 0.0 and is_flat(P)):
-        return False
+def polar_axis(S, P, C, PP, NPC):
+    """(cx, cy), the axis the removed height is integrated about (module docstring), or (nan, nan) where
+    none applies: the tool is a flat end mill, the CL's sweep ``S`` (profile ``P``) is an arc or helix
+    (its centre) or level (a level line, a plunge: the centre of the first earlier arc of ``C`` that is
+    not level), and every sweep of ``C`` is flat and either on that axis (:data:`AXIS_TOL`) or level."""
+    none = (math.nan, math.nan)
+    if not is_flat(P):
+        return none
+    if S[0] == ARC and S[9] > 0.0:
+        cx, cy = S[7], S[8]
+    elif S[0] == LINE and _level_flat(S):
+        cx, cy = math.nan, math.nan
+        for j in range(C.shape[0]):
+            if C[j, 0] == ARC and C[j, 9] > 0.0 and not _level_flat(C[j]):
+                cx, cy = C[j, 7], C[j, 8]
+                break
+        if math.isnan(cx):
+            return none
+    else:
+        return none
     for j in range(C.shape[0]):
         k = int(C[j, 12])
         if C[j, 0] != OUTSIDE and not is_flat(PP[k, :NPC[k]]):
-            return False
-        if not (_level_flat(C[j]) or _on_axis(C[j], S[7], S[8])):
-            return False
-    return True
+            return none
+        if not (_level_flat(C[j]) or _on_axis(C[j], cx, cy)):
+            return none
+    return cx, cy
+
+
+@njit(cache=True)
+def polar_applies(S, P, C, PP, NPC) -> bool:
+    """Whether the removed height over cells whose sweeps are ``C`` is integrated about an axis
+    (:func:`polar_axis`)."""
+    return not math.isnan(polar_axis(S, P, C, PP, NPC)[0])
 
 
 @njit(cache=True, inline="always")
@@ -97,27 +125,31 @@ def _half_window(r, rho, R):
 
 
 @njit(cache=True)
-def _axial(S, P, R, C, PP, NPC, RR, zb, zt):
-    """(rows (rho, R) of the CL's arc, then of each earlier arc on its axis; rows (the arc's row there, an
+def _axial(S, P, R, C, PP, NPC, RR, zb, zt, cx, cy):
+    """(rows (rho, R) of the CL's arc (where it is one), then of each earlier arc on the axis (cx, cy); rows
+    (the arc's row there, an
     angle ``e``) of their *ends*: the angles ``e`` whose ``e +- alpha`` bound the pieces where their
     lower surfaces are linear (each arc's ends, and each end a turn in: a helix of more than a turn is
     lowest on its last) and where the removed height bends: where an arc's tip crosses the stock's top
-    or bottom or a level sweep's height)."""
-    cx, cy = S[7], S[8]
+    or bottom or a level sweep's height, the CL's own where it is level)."""
     levels = [zt, zb]
+    if S[0] != ARC:
+        levels.append(min(S[3], S[6]) + P[0, 3])
     for j in range(C.shape[0]):
         if _level_flat(C[j]):
             k = int(C[j, 12])
             levels.append(min(C[j, 3], C[j, 6]) + (0.0 if C[j, 0] == OUTSIDE else PP[k, 0, 3]))
-    rows = [(S[9], R, S[10], S[11], S[3] + P[0, 3], S[6] + P[0, 3])]
+    rows = [(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)]  # typed for numba; the rows are [1:]
+    if S[0] == ARC:
+        rows.append((S[9], R, S[10], S[11], S[3] + P[0, 3], S[6] + P[0, 3]))
     for j in range(C.shape[0]):
         if _on_axis(C[j], cx, cy):
             k = int(C[j, 12])
             rows.append((C[j, 9], RR[k], C[j, 10], C[j, 11], C[j, 3] + PP[k, 0, 3], C[j, 6] + PP[k, 0, 3]))
-    axial = np.empty((len(rows), 2))
+    axial = np.empty((len(rows) - 1, 2))
     ends = [(0.0, 0.0)]  # typed for numba; the ends are [1:]
-    for i in range(len(rows)):
-        rho, Ri, a0, sw, z0, z1 = rows[i]
+    for i in range(len(rows) - 1):
+        rho, Ri, a0, sw, z0, z1 = rows[i + 1]
         axial[i, 0], axial[i, 1] = rho, Ri
         lo, hi = min(a0, a0 + sw), max(a0, a0 + sw)
         for e in (lo, hi, hi - _TWO_PI, lo + _TWO_PI):
@@ -195,11 +227,10 @@ def _crossing(fa, fb, ga, gb):
 
 @njit(cache=True)
 def ring_integral(r, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends, circles, segments, edges,
-                  bands):
-    """integral over theta of the removed height at radius ``r`` about the CL's arc's centre within the
+                  bands, cx, cy):
+    """integral over theta of the removed height at radius ``r`` about the axis (cx, cy) within the
     cell [x0, x1] x [y0, y1] (mm², no factor ``r``), exact (module docstring); its parts within each
     band [edges[i], edges[i + 1]] are added to ``bands``."""
-    cx, cy = S[7], S[8]
     ts = ring_breaks(r, cx, cy, x0, x1, y0, y1, axial, ends, circles, segments)
     nb = max(edges.shape[0] - 1, 0)
     nc = C.shape[0]
@@ -290,36 +321,65 @@ def _overlap(fa, fb, m, u, zb, zt, e0, e1):
 
 
 @njit(cache=True, inline="always")
-def _add_near(out, px, py, S, P, R):
-    """Appends the point's radius about the CL's arc's centre to ``out`` where the point lies in the
-    CL's footprint (widened by :data:`NEAR` mm): elsewhere nothing is removed around it, and the
-    structure along a circle through it does not matter."""
-    if sweep_lower(S, P, R, px, py, NEAR) < math.inf:
-        out.append(math.hypot(px - S[7], py - S[8]))
+def _removes_near(px, py, S, P, R, C, PP, NPC, RR):
+    """Whether the CL can remove anything near the point: it lies in the CL's footprint (widened by
+    :data:`NEAR` mm) and no level sweep at or below the CL's lowest tip holds it with :data:`NEAR` to
+    spare. Elsewhere the removed height is zero around it, so what happens to the structure along a
+    circle through it changes the integrand only where it is zero."""
+    if sweep_lower(S, P, R, px, py, NEAR) == math.inf:
+        return False
+    floor = min(S[3], S[6]) + P[0, 3]
+    for j in range(C.shape[0]):
+        if not _level_flat(C[j]):
+            continue
+        if C[j, 0] == OUTSIDE:
+            if C[j, 3] <= floor and math.hypot(px - C[j, 7], py - C[j, 8]) >= C[j, 9] + NEAR:
+                return False
+            continue
+        k = int(C[j, 12])
+        if min(C[j, 3], C[j, 6]) + PP[k, 0, 3] <= floor and point_path_distance(C[j], px, py) <= RR[k] - NEAR:
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _footprint_radii(S, R, cx, cy):
+    """(least, greatest) distance (mm) from the axis (cx, cy) to the CL's footprint, or bounds of them: an
+    arc's about the axis, [rho - R, rho + R]; a line's, within R of the segment between its ends."""
+    if S[0] == ARC:
+        return max(S[9] - R, 0.0), S[9] + R
+    ux, uy = S[4] - S[1], S[5] - S[2]
+    px, py = cx - S[1], cy - S[2]
+    uu = ux * ux + uy * uy
+    t = min(max((px * ux + py * uy) / uu, 0.0), 1.0) if uu > 0.0 else 0.0
+    near = math.hypot(px - t * ux, py - t * uy)
+    far = max(math.hypot(px, py), math.hypot(cx - S[4], cy - S[5]))
+    return max(near - R, 0.0), far + R
 
 
 @njit(cache=True)
-def _radius_breaks(S, P, R, x0, x1, y0, y1, axial, ends, circles, segments):
-    """Sorted radii about the CL's arc's centre where the structure along the circle may change
+def _radius_breaks(S, P, R, x0, x1, y0, y1, axial, ends, circles, segments, cx, cy, C, PP, NPC, RR):
+    """Sorted radii about the axis (cx, cy) where the structure along the circle may change
     (module docstring), within the CL's footprint's radii and the cell's: the radii where ``alpha``
     of an axial arc starts or ends, and those of the points in the CL's footprint where a circle
     through them touches a curve or the cell's edge or passes a corner: the cell's corners, the
     curves' meetings, their crossings of the cell's edges."""
-    cx, cy = S[7], S[8]
     nx, ny = min(max(cx, x0), x1), min(max(cy, y0), y1)  # the cell's point nearest the centre
-    rmin = max(math.hypot(nx - cx, ny - cy), max(S[9] - R, 0.0))
+    near, reach = _footprint_radii(S, R, cx, cy)
+    rmin = max(math.hypot(nx - cx, ny - cy), near)
     far = 0.0
     for x in (x0, x1):
         for y in (y0, y1):
             far = max(far, math.hypot(x - cx, y - cy))
-    rmax = min(S[9] + R, far)
+    rmax = min(reach, far)
     out = [rmin, rmax]
+    pts = [(cx, cy)]  # typed for numba; [1:] are the points whose radii are breaks where the CL removes near them
     for x in (x0, x1):
-        _add_near(out, x, min(max(cy, y0), y1), S, P, R)  # an edge's point nearest the centre
+        pts.append((x, min(max(cy, y0), y1)))  # an edge's point nearest the centre
         for y in (y0, y1):
-            _add_near(out, x, y, S, P, R)
+            pts.append((x, y))
     for y in (y0, y1):
-        _add_near(out, min(max(cx, x0), x1), y, S, P, R)
+        pts.append((min(max(cx, x0), x1), y))
     for i in range(axial.shape[0]):
         out.append(abs(axial[i, 0] - axial[i, 1]))
         out.append(axial[i, 0] + axial[i, 1])
@@ -341,32 +401,32 @@ def _radius_breaks(S, P, R, x0, x1, y0, y1, axial, ends, circles, segments):
                 for root in (rho * ca - math.sqrt(disc), rho * ca + math.sqrt(disc)):
                     if root > 0.0:
                         t = ends[i, 1] + sign * al
-                        _add_near(out, cx + root * math.cos(t), cy + root * math.sin(t), S, P, R)
+                        pts.append((cx + root * math.cos(t), cy + root * math.sin(t)))
     for i in range(circles.shape[0]):
         dx, dy, q = circles[i, 0] - cx, circles[i, 1] - cy, circles[i, 2]
         d = math.hypot(dx, dy)
         if d > 0.0:  # the circle's points nearest and farthest from the centre
-            _add_near(out, circles[i, 0] - q * dx / d, circles[i, 1] - q * dy / d, S, P, R)
-            _add_near(out, circles[i, 0] + q * dx / d, circles[i, 1] + q * dy / d, S, P, R)
+            pts.append((circles[i, 0] - q * dx / d, circles[i, 1] - q * dy / d))
+            pts.append((circles[i, 0] + q * dx / d, circles[i, 1] + q * dy / d))
         else:
             out.append(q)
     for i in range(segments.shape[0]):
         ax, ay = segments[i, 0], segments[i, 1]
         ux, uy = segments[i, 2] - ax, segments[i, 3] - ay
-        _add_near(out, ax, ay, S, P, R)
-        _add_near(out, ax + ux, ay + uy, S, P, R)
+        pts.append((ax, ay))
+        pts.append((ax + ux, ay + uy))
         uu = ux * ux + uy * uy
         if uu > 0.0:
             t = ((cx - ax) * ux + (cy - ay) * uy) / uu
             if 0.0 < t < 1.0:
-                _add_near(out, ax + t * ux, ay + t * uy, S, P, R)
+                pts.append((ax + t * ux, ay + t * uy))
     meet = curve_meetings_x(circles, segments, x0, y0, x1, y1)
     for i in range(1, meet.shape[0]):
-        _add_near(out, meet[i, 0], meet[i, 1], S, P, R)
+        pts.append((meet[i, 0], meet[i, 1]))
     edge = edge_crossings(circles, segments, y0, y1)
     for i in range(edge.shape[0]):
         if x0 <= edge[i, 0] <= x1:
-            _add_near(out, edge[i, 0], edge[i, 1], S, P, R)
+            pts.append((edge[i, 0], edge[i, 1]))
     # the curves' crossings of the cell's edges x = x0 and x = x1: those of y = x0 and y = x1 with x and
     # y swapped
     turned_c = circles.copy()
@@ -377,7 +437,11 @@ def _radius_breaks(S, P, R, x0, x1, y0, y1, axial, ends, circles, segments):
     edge = edge_crossings(turned_c, turned_s, x0, x1)
     for i in range(edge.shape[0]):
         if y0 <= edge[i, 0] <= y1:
-            _add_near(out, edge[i, 1], edge[i, 0], S, P, R)
+            pts.append((edge[i, 1], edge[i, 0]))
+    for i in range(1, len(pts)):
+        px, py = pts[i]
+        if _removes_near(px, py, S, P, R, C, PP, NPC, RR):
+            out.append(math.hypot(px - cx, py - cy))
     rs = np.unique(np.array(out))
     rs = rs[(rs >= rmin) & (rs <= rmax)]
     # one break for radii apart by round-off (a point reached by two ways): a part between them would
@@ -393,7 +457,8 @@ def _radius_breaks(S, P, R, x0, x1, y0, y1, axial, ends, circles, segments):
 
 
 @njit(cache=True)
-def _gk_r(a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends, circles, segments, edges, kb):
+def _gk_r(a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends, circles, segments, edges, kb, cx,
+          cy):
     """Gauss-Kronrod (7, 15) of r times :func:`ring_integral` over r in [a, b] (the map of
     :func:`.volume._smooth`): (the integral, its error); each band's Kronrod sum is added to ``kb``."""
     k = 0.0
@@ -405,7 +470,7 @@ def _gk_r(a, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends
         r, w = _smooth(a, b, u)
         vb[:] = 0.0
         f = r * w * ring_integral(r, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends, circles, segments,
-                                  edges, vb)
+                                  edges, vb, cx, cy)
         k += wk * f
         g += wg * f
         m += wk * abs(f)
@@ -421,10 +486,11 @@ def held_annuli(S, P, C, PP, NPC, RR):
     (the last going down, the first going up), and where that is no higher than the CL's lowest tip,
     the CL's lower surface is nowhere below it."""
     own = min(S[3], S[6]) + P[0, 3]
+    cx, cy = polar_axis(S, P, C, PP, NPC)
     out = [(0.0, -1.0)]  # typed for numba; the rows are [1:]
     for j in range(C.shape[0]):
         sw = abs(C[j, 11])
-        if not (_on_axis(C[j], S[7], S[8]) and sw >= _TWO_PI):
+        if not (_on_axis(C[j], cx, cy) and sw >= _TWO_PI):
             continue
         k = int(C[j, 12])
         if lowest_turn_top(C[j]) + PP[k, 0, 3] <= own:
@@ -452,9 +518,10 @@ def polar_volume(x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR,
     heights), as the integral over ``r`` of :func:`ring_integral` times ``r`` (module docstring). Only
     for sweeps :func:`polar_applies` accepts; ``circles`` and ``segments`` are their boundary curves
     (:func:`.breaks.boundary_curves`)."""
-    axial, ends = _axial(S, P, R, C, PP, NPC, RR, zb, zt)
+    cx, cy = polar_axis(S, P, C, PP, NPC)
+    axial, ends = _axial(S, P, R, C, PP, NPC, RR, zb, zt, cx, cy)
     nb = max(edges.shape[0] - 1, 0)
-    rs = _radius_breaks(S, P, R, x0, x1, y0, y1, axial, ends, circles, segments)
+    rs = _radius_breaks(S, P, R, x0, x1, y0, y1, axial, ends, circles, segments, cx, cy, C, PP, NPC, RR)
     budget = tol * (x1 - x0) * (y1 - y0)
     lo = np.empty(_PANELS)
     hi = np.empty(_PANELS)
@@ -467,7 +534,7 @@ def polar_volume(x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR,
         if rs[p + 1] > rs[p] and n < _PANELS and not _within(rs[p], rs[p + 1], held):
             lo[n], hi[n] = rs[p], rs[p + 1]
             val[n], err[n] = _gk_r(lo[n], hi[n], S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends,
-                                   circles, segments, edges, bands[n])
+                                   circles, segments, edges, bands[n], cx, cy)
             n += 1
     while n < _PANELS:
         k = next_split(lo, hi, val, err, n, budget, rel)
@@ -478,10 +545,10 @@ def polar_volume(x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR,
         hi[k] = m
         bands[k] = 0.0
         val[k], err[k] = _gk_r(a, m, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends, circles,
-                               segments, edges, bands[k])
+                               segments, edges, bands[k], cx, cy)
         lo[n], hi[n] = m, b
         val[n], err[n] = _gk_r(m, b, S, P, R, C, CB, PP, NPC, RR, zb, zt, x0, x1, y0, y1, axial, ends, circles,
-                               segments, edges, bands[n])
+                               segments, edges, bands[n], cx, cy)
         n += 1
     if n == 0:
         return 0.0, np.zeros(nb)

@@ -9,7 +9,7 @@ import numpy as np
 from fusioncut.engines.analytic.cells import cell_floor, footprint_ceilings, relevant_sweeps
 from fusioncut.engines.analytic.engine import CELL_SWEEPS, FLAT_SWEEPS, MIN_CELL_RADII, POLAR_SWEEPS, TILE_RADII
 from fusioncut.engines.analytic.flat import all_level_flat
-from fusioncut.engines.analytic.partition import ADAPTIVE, FLAT, volume_cells
+from fusioncut.engines.analytic.partition import ADAPTIVE, FLAT, POLAR, volume_cells
 from fusioncut.engines.analytic.profile import lower_profile
 from fusioncut.engines.analytic.sweeps import arc_row, line_row
 from fusioncut.model import BallEndMill, FlatEndMill
@@ -105,7 +105,8 @@ def test_a_flat_cut_beside_a_helical_entry_is_quartered_where_its_quarters_shed_
     its helical entry, two turns of radius 4 from z = 0.5, under the facing passes at z = -1): no sweep
     gives h all over the 12 mm tile, and none is level flat in all of it. An adaptive cell wider than the
     tool's radius is quartered where a quarter leaves a sweep out (each of its quarters keeps all its
-    sweeps), since an adaptive integral's cost grows with the sweeps it meets."""
+    sweeps), since an adaptive integral's cost grows with the sweeps it meets. (With the closed forms
+    taken, the level CL's cells there are integrated about the helix's axis, .polar, and not quartered.)"""
     R6 = 6.0
     prof = lower_profile(FlatEndMill(2 * R6, 20))
     P, NP, RR = prof.pieces[None], np.array([prof.pieces.shape[0]]), np.array([prof.radius])
@@ -122,8 +123,10 @@ def test_a_flat_cut_beside_a_helical_entry_is_quartered_where_its_quarters_shed_
     CB[0] = (25.0 - 10.0, 22.0 - 10.0, 25.0 + 10.0, 22.0 + 10.0)  # the helix's: its circle widened by R
     S = line_row((21.575, 23.985, -4.0), (21.148, 23.985, -4.0), 0)
     box = (15.148, 17.985, 27.575, 29.985)
-    cells, kinds, starts, items = volume_cells(*box, TILE_RADII * R6, S, prof.pieces, R6, C, CB, P, NP, RR, ZB, ZT,
-                                               MIN_CELL_RADII * R6, CELL_SWEEPS, FLAT_SWEEPS, POLAR_SWEEPS, 48)
+    args = (*box, TILE_RADII * R6, S, prof.pieces, R6, C, CB, P, NP, RR, ZB, ZT, MIN_CELL_RADII * R6, CELL_SWEEPS,
+            FLAT_SWEEPS, POLAR_SWEEPS, 48)
+    assert volume_cells(*args)[1].tolist() == [POLAR]
+    cells, kinds, starts, items = volume_cells(*args, True, False)
     foot = footprint_ceilings(S, R6, C, P, NP, RR)
     assert len(cells) > 1
     for i in np.flatnonzero(kinds == ADAPTIVE):

@@ -203,6 +203,87 @@ def test_polar_cells_as_horizontal_slices_find_them(monkeypatch):
         assert exact == pytest.approx(sliced, rel=1e-10, abs=1e-12)
 
 
+def _entry_and_slot(rho: float, length: float, decimals: int | None = None) -> tuple[list, float]:
+    """A helical entry (R = 3, 3 turns of radius ``rho`` about (1, 2), 1 mm a turn, from 0.5 mm above the
+    stock down to -2.5) whose last turn leaves a ramped ledge, a level slot out along +x from the
+    helix's end ``length`` mm and back in moves of 0.5 mm (as a trochoid's chords), then a level circle
+    about the axis at the bottom; and the depth of the level cuts (mm)."""
+    bore = _bore(rho, turns=3, pitch=1.0, decimals=decimals, z0=0.5)
+    end = bore[-3].end
+    xs = [end[0] + 0.5 * i for i in range(int(length / 0.5) + 1)]
+    xs = xs + xs[-2::-1]
+    slot = [LinearMove((a, end[1], end[2]), (b, end[1], end[2]), feed=600.0, tool=1) for a, b in zip(xs, xs[1:])]
+    return bore[:-2] + slot + bore[-2:], -end[2]
+
+
+def _polar_cells_of_level_cls(monkeypatch) -> list:
+    cells = []
+    polar = analytic.polar_volume
+    monkeypatch.setattr(analytic, "polar_volume",
+                        lambda *a: (a[6][0] == 0.0 and a[6][3] == a[6][6] and cells.append(a)) or polar(*a))
+    return cells
+
+
+def test_a_slot_out_of_a_helical_entrys_ledge_removes_the_union_of_disk_and_slot(monkeypatch):
+    """A flat end mill (R = 3) enters down a helix of radius rho = 1.2 to depth D = 2.5, cuts a level slot
+    from the helix's end out along +x and back, then goes round once at the bottom: the slot's CLs
+    meet the ramped ledge the helix's last turn left, in cells integrated about the helix's axis
+    (.polar with a level CL), and all CLs together remove the disk of radius a = rho + R united with
+    the slot's stadium, times D. Both are symmetric about the slot's line, so the union's width at x is
+    the larger of theirs; beyond the disk's x = b = sqrt(a^2 - R^2) the slot is wider:
+    pi a^2 + 2 (R (x1 - b) - (pi a^2 / 4 - b R / 2 - a^2 asin(b / a) / 2)) + pi R^2 / 2 per mm of depth,
+    with ``x1`` the slot's far end (from the axis)."""
+    R, rho, length = 3.0, 1.2, 8.0
+    moves, depth = _entry_and_slot(rho, length)
+    cells = _polar_cells_of_level_cls(monkeypatch)
+    _, maps = run(moves, {1: FlatEndMill(2 * R, 20)}, BoxStock((-12, -12, -10), (16, 12, 0)), slice_height=1.0)
+    a, x1 = rho + R, rho + length
+    b = math.sqrt(a * a - R * R)
+    beyond = R * (a - b) - (math.pi * a * a / 4 - b * R / 2 - a * a * math.asin(b / a) / 2)
+    area = math.pi * a * a + 2 * (beyond + R * (x1 - a)) + math.pi * R * R / 2
+    assert sum(m.removed_volume for m in maps) == pytest.approx(area * depth, rel=1e-7)
+    assert all(m.engine == "analytic" for m in maps)
+    assert len(cells) > 10  # the slot's CLs: level, about the helix's axis
+
+
+@pytest.mark.parametrize("rho,decimals", [(1.2, None), (1.475, 3), (4.0, 3)])
+def test_level_cls_about_an_earlier_helixs_axis_as_the_adaptive_integral(monkeypatch, rho, decimals):
+    """The slot out of a helical entry's ledge (above; rho < R and rho > R, exact and rounded as posts write
+    them): each CL's volume, contact areas and rubbing slices as the adaptive integral finds them."""
+    moves, _ = _entry_and_slot(rho, 8.0, decimals)
+    tools, stock = {1: FlatEndMill(6.0, 20)}, BoxStock((-12, -12, -10), (16, 12, 0))
+    cells = _polar_cells_of_level_cls(monkeypatch)
+    _, polar = run(moves, tools, stock, slice_height=0.5)
+    assert len(cells) > 10
+    monkeypatch.setattr(analytic, "POLAR_FORMS", False)
+    _, adaptive = run(moves, tools, stock, slice_height=0.5)
+    for a, b in zip(polar, adaptive, strict=True):
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
+        assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
+        assert a.rubbing_slices == b.rubbing_slices, a.cl_index
+
+
+def test_level_cls_polar_cells_as_horizontal_slices_find_them(monkeypatch):
+    """Each cell of the slot's level CLs out of a helical entry's ledge, integrated tightly about the
+    helix's axis and as the integral over heights of exact cross-sections (tests' sliced_oracle): the
+    same volume to 1e-10."""
+    from tests.engines.analytic.sliced_oracle import sliced_volume
+
+    moves, _ = _entry_and_slot(1.475, 8.0, decimals=3)
+    cells = _polar_cells_of_level_cls(monkeypatch)
+    run(moves, {1: FlatEndMill(6.0, 20)}, BoxStock((-12, -12, -10), (16, 12, 0)), slice_height=0.5)
+    assert len(cells) > 10
+    from fusioncut.engines.analytic.polar import polar_volume
+    removed = 0.0
+    for a in cells[::2]:
+        x0, x1, y0, y1, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, _, _, edges = a
+        exact = polar_volume(*a[:16], 1e-14, 1e-14, edges)[0]
+        sliced = sliced_volume(x0, x1, y0, y1, S, P, R, C, CB, PP, NPC, RR, zb, zt, 1e-14, 1e-14, edges)[0]
+        assert exact == pytest.approx(sliced, rel=1e-10, abs=1e-12)
+        removed += exact
+    assert removed > 1.0
+
+
 def test_a_turn_of_an_earlier_helix_holds_its_annulus():
     """polar.held_annuli: an earlier helix on the CL's axis holds [max(rho - R, 0), rho + R] where the highest
     tip of its lowest turn is no higher than the CL's lowest tip; less than a turn, a higher turn, or
