@@ -79,6 +79,7 @@ from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, i
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
 from fusioncut.engines.analytic.polar import polar_volume
+from fusioncut.engines.analytic.sections import sections_apply
 from fusioncut.engines.analytic.profile import (LowerProfile, lower_profile, profile_height, profile_radius,
                                                 profile_radius_slope, upper_parts)
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row, vertical_row
@@ -99,8 +100,8 @@ CELL_SWEEPS = 12  # a cell of the volume's integral met by more earlier sweeps i
 MIN_CELL_RADII = 0.125  # down to this many tool radii wide
 POLAR_SWEEPS = CELL_SWEEPS  # a cell whose sweeps are all on the CL's axis or level (.polar) and which an earlier
 # helix holds in part (polar.held_annuli) is not quartered up to this many: its held radii cost nothing there
-FLAT_FORMS = POLAR_FORMS = True  # the closed forms (.flat, .polar) are taken where they apply (False: those cells are
-# integrated adaptively, as the tests' differential checks do)
+FLAT_FORMS = POLAR_FORMS = SECTION_FORMS = True  # the closed forms (.flat, .polar, .sections' inner integrals) are
+# taken where they apply (False: those cells are integrated adaptively, as the tests' differential checks do)
 FLAT_SWEEPS = 8  # a cell whose sweeps are all level and flat is integrated in closed form (.flat) whole up to
 # this many, not quartered where a quarter is empty; with more, its quarters cost less (the closed form's parts
 # between curve meetings grow as the square of the curves, and each part's regions with them)
@@ -626,8 +627,9 @@ class AnalyticEngine:
                 else:
                     xs = x_breaks(circles, segments, cx0, cx1, cy0, cy1, row, profile.pieces, profile.radius, Ct,
                                   CBt, P, NP, RR, s[2])
+                    exact = SECTION_FORMS and sections_apply(row, profile.pieces, profile.radius, Ct, P, NP, RR)
                     v, vb = removed_volume(xs, cy0, cy1, circles, segments, row, profile.pieces, profile.radius, Ct,
-                                           CBt, P, NP, RR, s[2], s[5], tol, self.volume_rel, edges)
+                                           CBt, P, NP, RR, s[2], s[5], tol, self.volume_rel, edges, exact)
                 total += v
                 bands += vb
         return float(total), tuple(float(v) for v in bands)

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from fusioncut.engines.analytic.breaks import curve_meetings_x, edge_crossings, sweep_curves
+from fusioncut.engines.analytic.sections import half_disk
 from fusioncut.engines.analytic.sweeps import ARC, LINE, OUTSIDE, is_flat
 from fusioncut.engines.analytic.volume import _band_overlaps, height_and_cause
 
@@ -59,17 +60,9 @@ def _level_flat(S, P, plunges) -> bool:
 
 
 @njit(cache=True, inline="always")
-def _half_disk(u, r):
-    """integral over [0, u] of sqrt(r^2 - v^2) dv (|u| <= r). Near a tangent (|u| close to r) ``r^2 - u^2``
-    and ``asin(u / r)`` would lose their digits to cancellation; ``(r - u) (r + u)`` and ``atan2`` keep them."""
-    s = math.sqrt(max((r - u) * (r + u), 0.0))
-    return 0.5 * (u * s + r * r * math.atan2(u, s))
-
-
-@njit(cache=True, inline="always")
 def _circle_integral(cx, r, a, b):
     """integral over x in [a, b] of sqrt(r^2 - (x - cx)^2) dx (a, b within [cx - r, cx + r])."""
-    return _half_disk(b - cx, r) - _half_disk(a - cx, r)
+    return half_disk(b - cx, r) - half_disk(a - cx, r)
 
 
 @njit(cache=True, inline="always")

@@ -46,6 +46,7 @@ from numba import njit
 from fusioncut.engines.analytic.breaks import crossings_at_x
 from fusioncut.engines.analytic.brent import brent_next, brent_start, brent_take
 from fusioncut.engines.analytic.profile import profile_height
+from fusioncut.engines.analytic.sections import section_integral
 from fusioncut.engines.analytic.sweeps import point_segment_distance, sweep_floor, sweep_lower
 
 MIN_PART = 1e-9  # mm
@@ -553,15 +554,23 @@ def inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, 
 
 
 @njit(cache=True)
-def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges, kb, work):
+def _gk_x(a, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel, edges, kb, work,
+          exact):
+    """Gauss-Kronrod on x in [a, b] of the inner integrals: (the integral, its error); each band's Kronrod
+    sum is added to ``kb``. ``exact``: the inner integrals in closed form (:mod:`.sections`)."""
     k = 0.0
     g = 0.0
     m = 0.0
+    vb = np.zeros(kb.shape[0])
     for i in range(15):
         u, wk, wg = _node(i)
         x, w = _smooth(a, b, u)
-        v, vb = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel,
-                               edges, work)
+        if exact:
+            vb[:] = 0.0
+            v = section_integral(x, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb, zt, edges, vb)
+        else:
+            v, vb = inner_integral(x, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, budget, rel,
+                                   edges, work)
         f = v * w
         k += wk * f
         g += wg * f
@@ -644,12 +653,13 @@ def rough_volume(x0, x1, ylo, yhi, S, P, R, C, CB, PP, NPC, RR, zb, zt):
 
 
 @njit(cache=True)
-def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol, rel, edges):
+def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, tol, rel, edges, exact=False):
     """(the removed volume (mm³) over x between the sorted break points ``xs`` and y in [ylo, yhi],
     to ``tol`` mm per mm² of that rectangle or ``rel`` of the volume, whichever is looser; the volume
     removed within each band [edges[i], edges[i + 1]] of machine heights, on the same nodes). A tenth
     of each goes to the inner integrals (each line's error within a tenth of ``tol (yhi - ylo)`` or of
-    ``rel`` of the line's integral), the rest to the outer one.
+    ``rel`` of the line's integral), the rest to the outer one; with ``exact``, the inner integrals are in
+    closed form (:func:`.sections.section_integral`, for sweeps :func:`.sections.sections_apply` accepts).
     The bands' volumes are as exact as the whole where the removed height's ends do not cross a
     band's edge within a part; where they do, the part is only as fine as the whole needs."""
     area = (xs[-1] - xs[0]) * (yhi - ylo)
@@ -668,7 +678,7 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
         if xs[p + 1] - xs[p] > 0.0 and n < _PANELS:
             lo[n], hi[n] = xs[p], xs[p + 1]
             val[n], err[n] = _gk_x(lo[n], hi[n], ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt,
-                                   inner, 0.1 * rel, edges, bands[n], work)
+                                   inner, 0.1 * rel, edges, bands[n], work, exact)
             n += 1
     while n < _PANELS:
         k = next_split(lo, hi, val, err, n, budget, 0.9 * rel)
@@ -679,9 +689,9 @@ def removed_volume(xs, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR,
         hi[k] = m
         bands[k] = 0.0
         val[k], err[k] = _gk_x(a, m, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner,
-                               0.1 * rel, edges, bands[k], work)
+                               0.1 * rel, edges, bands[k], work, exact)
         lo[n], hi[n] = m, b
         val[n], err[n] = _gk_x(m, b, ylo, yhi, circles, segments, S, P, R, C, CB, PP, NPC, RR, zb, zt, inner,
-                               0.1 * rel, edges, bands[n], work)
+                               0.1 * rel, edges, bands[n], work, exact)
         n += 1
     return val[:n].sum(), bands[:n].sum(axis=0)
