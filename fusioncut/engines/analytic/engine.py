@@ -79,9 +79,9 @@ from fusioncut.engines.analytic.heightmap import NODE_RADII, grid, height_map, i
 from fusioncut.engines.analytic.index import ProfileTable, SweepIndex
 from fusioncut.engines.analytic.partition import FLAT, POLAR, volume_cells
 from fusioncut.engines.analytic.polar import polar_volume
-from fusioncut.engines.analytic.sections import sections_apply
 from fusioncut.engines.analytic.profile import (LowerProfile, lower_profile, profile_height, profile_radius,
                                                 profile_radius_slope, upper_parts)
+from fusioncut.engines.analytic.sections import sections_apply
 from fusioncut.engines.analytic.sweeps import LINE, NCOL, OUTSIDE, arc_row, is_flat, line_row, outside_row, vertical_row
 from fusioncut.engines.analytic.volume import removed_volume, rough_volume
 from fusioncut.engines.base import EngineKind, EngineOptions, SweepMethod

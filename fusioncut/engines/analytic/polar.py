@@ -126,12 +126,11 @@ def _half_window(r, rho, R):
 
 @njit(cache=True)
 def _axial(S, P, R, C, PP, NPC, RR, zb, zt, cx, cy):
-    """(rows (rho, R) of the CL's arc (where it is one), then of each earlier arc on the axis (cx, cy); rows
-    (the arc's row there, an
-    angle ``e``) of their *ends*: the angles ``e`` whose ``e +- alpha`` bound the pieces where their
-    lower surfaces are linear (each arc's ends, and each end a turn in: a helix of more than a turn is
-    lowest on its last) and where the removed height bends: where an arc's tip crosses the stock's top
-    or bottom or a level sweep's height, the CL's own where it is level)."""
+    """(rows (rho, R) of the CL's arc (where it is one), then of each earlier arc on the axis (cx, cy);
+    rows (the arc's row there, an angle ``e``) of their *ends*: the angles ``e`` whose ``e +- alpha``
+    bound the pieces where their lower surfaces are linear (each arc's ends, and each end a turn in: a
+    helix of more than a turn is lowest on its last) and where the removed height bends: where an arc's
+    tip crosses the stock's top or bottom or a level sweep's height, the CL's own where it is level)."""
     levels = [zt, zb]
     if S[0] != ARC:
         levels.append(min(S[3], S[6]) + P[0, 3])
