@@ -79,25 +79,28 @@ def test_real_programs_benchmark_runs_both_engines_on_the_same_cls(tmp_path):
     assert abs(res["removed_relative_difference"]) < 1e-5
 
 
-def test_a_real_program_window_conserves_its_volume():
-    """The real-program benchmark's conservation on a window of bear's ball finishing (CLs 8801-8803):
-    the box around the window's footprints loses what its CLs removed, both integrals of the
-    material taken from the sweeps alone, to the integrals' tolerance (``volume_rel`` of each)."""
+@pytest.mark.parametrize("name,start,cls,removed", [("bear", 8801, 3, 10.0), ("titan", 36100, 5, 1.0)])
+def test_a_real_program_window_conserves_its_volume(name, start, cls, removed):
+    """The real-program benchmark's conservation on a window of bear's ball finishing (CLs 8801-8803, 3D
+    segments) and of the Titan-like program's ball-end raster (CLs 36100-36104, level lines along x whose
+    cells are integrated across each line in closed form, .sections): the box around the window's
+    footprints loses what its CLs removed, both integrals of the material taken from the sweeps alone, to
+    the integrals' tolerance (``volume_rel`` of each)."""
     import real_programs
     from shared_data import DATA
 
     from fusioncut.engines.analytic.engine import AnalyticEngine
     from fusioncut.engines.base import EngineOptions
 
-    if not (DATA / "camotics-examples" / "bear" / "bear.nc").is_file():
+    if name == "bear" and not (DATA / "camotics-examples" / "bear" / "bear.nc").is_file():
         pytest.skip("shared data missing")
-    toolpath, stock, default = real_programs.load(next(p for p in real_programs.PROGRAMS if p.name == "bear"))
+    toolpath, stock, default = real_programs.load(next(p for p in real_programs.PROGRAMS if p.name == name))
     options = EngineOptions(slice_height=1.0)
     engine = AnalyticEngine(options)
     engine.start(stock)
-    row = real_programs.timed(engine.process(toolpath, default, start_at=8801), 3)
-    assert row["cut"] == 3 and row["removed_mm3"] > 10
-    assert real_programs.window_conservation(toolpath, stock, default, options, 8801, row) \
+    row = real_programs.timed(engine.process(toolpath, default, start_at=start), cls)
+    assert row["cut"] == cls and row["removed_mm3"] > removed
+    assert real_programs.window_conservation(toolpath, stock, default, options, start, row) \
         <= 3 * AnalyticEngine.volume_rel
 
 

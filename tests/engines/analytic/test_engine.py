@@ -27,6 +27,16 @@ def run(moves, tools, stock, engine=AnalyticEngine, **opts):
     return eng, list(eng.run(Toolpath(tuple(moves), tools), stock))
 
 
+def assert_maps_agree(maps, others):
+    """Each CL's volume and contact area to the analytic integrals' tolerances, its rubbing slices the same,
+    both from the analytic engine: a closed form against the adaptive integral it replaces."""
+    for a, b in zip(maps, others, strict=True):
+        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
+        assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
+        assert a.rubbing_slices == b.rubbing_slices, a.cl_index
+        assert a.engine == b.engine == "analytic"
+
+
 def feed(p0, p1, tool=1):
     return LinearMove(p0, p1, feed=600.0, tool=tool)
 

@@ -10,7 +10,7 @@ import pytest
 
 import fusioncut.engines.analytic.engine as analytic
 from fusioncut.model import ArcMove, BallEndMill, BoxStock, FlatEndMill, LinearMove
-from tests.engines.analytic.test_engine import AREA_REL, VOLUME_REL, run
+from tests.engines.analytic.test_engine import VOLUME_REL, assert_maps_agree, run
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
 
@@ -126,11 +126,7 @@ def test_helices_in_polar_coordinates_as_the_adaptive_integral(monkeypatch, rho,
     monkeypatch.setattr(analytic, "POLAR_FORMS", False)
     _, adaptive = run(moves, tools, stock, slice_height=0.5)
     assert sum(m.removed_volume for m in polar) > 10
-    for a, b in zip(polar, adaptive, strict=True):
-        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
-        assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
-        assert a.rubbing_slices == b.rubbing_slices, a.cl_index
-        assert a.engine == b.engine == "analytic"
+    assert_maps_agree(polar, adaptive)
 
 
 def test_another_tool_or_an_arc_off_the_axis_stays_adaptive(monkeypatch):
@@ -257,10 +253,7 @@ def test_level_cls_about_an_earlier_helixs_axis_as_the_adaptive_integral(monkeyp
     assert len(cells) > 10
     monkeypatch.setattr(analytic, "POLAR_FORMS", False)
     _, adaptive = run(moves, tools, stock, slice_height=0.5)
-    for a, b in zip(polar, adaptive, strict=True):
-        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
-        assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
-        assert a.rubbing_slices == b.rubbing_slices, a.cl_index
+    assert_maps_agree(polar, adaptive)
 
 
 def test_level_cls_polar_cells_as_horizontal_slices_find_them(monkeypatch):

@@ -15,7 +15,7 @@ from fusioncut.engines.analytic.sections import _flat_interval, section_integral
 from fusioncut.engines.analytic.sweeps import line_row, sweep_lower
 from fusioncut.engines.analytic.volume import _workspace, height_and_cause, inner_integral
 from fusioncut.model import BallEndMill, BoxStock, FlatEndMill, LinearMove
-from tests.engines.analytic.test_engine import AREA_REL, VOLUME_REL, run
+from tests.engines.analytic.test_engine import assert_maps_agree, run
 
 BALL, FLAT3, FLAT5 = 0, 1, 2  # the tools' indices in the tables below
 _PIECES = [lower_profile(t).pieces for t in (BallEndMill(6, 20), FlatEndMill(6, 20), FlatEndMill(10, 20))]
@@ -190,31 +190,5 @@ def test_a_ball_raster_over_a_pocket_floor_as_the_adaptive_integral(monkeypatch,
     monkeypatch.setattr(analytic, "SECTION_FORMS", False)
     _, adaptive = run(moves, tools, stock, slice_height=0.25)
     assert sum(m.removed_volume for m in exact) > 5
-    for a, b in zip(exact, adaptive, strict=True):
-        assert a.removed_volume == pytest.approx(b.removed_volume, rel=VOLUME_REL, abs=1e-9), a.cl_index
-        assert a.contact_area == pytest.approx(b.contact_area, rel=AREA_REL, abs=1e-9), a.cl_index
-        assert a.rubbing_slices == b.rubbing_slices, a.cl_index
-        assert a.engine == b.engine == "analytic"
+    assert_maps_agree(exact, adaptive)
 
-
-def test_the_titan_like_rasters_window_conserves_its_volume():
-    """The Titan-like program's ball-end finishing raster (CLs 36100-36104, cells of level ball lines along
-    x, in closed form across each line): the box around the window's footprints loses what its CLs
-    removed, the material integrated from the sweeps alone, to the integrals' tolerance."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
-    import real_programs
-
-    from fusioncut.engines.analytic.engine import AnalyticEngine
-    from fusioncut.engines.base import EngineOptions
-
-    toolpath, stock, default = real_programs.load(next(p for p in real_programs.PROGRAMS if p.name == "titan"))
-    options = EngineOptions(slice_height=1.0)
-    engine = AnalyticEngine(options)
-    engine.start(stock)
-    row = real_programs.timed(engine.process(toolpath, default, start_at=36100), 5)
-    assert row["cut"] == 5 and row["removed_mm3"] > 1
-    assert real_programs.window_conservation(toolpath, stock, default, options, 36100, row) \
-        <= 3 * AnalyticEngine.volume_rel
