@@ -56,6 +56,8 @@ DOMINANCE_MOST = 48  # sweeps: a caller that quarters a cell left with more pass
 # (the O(n²) search for dominated sweeps is then left to the quarters)
 BOX_SLACK = 1e-9  # mm: how far a held footprint's box may reach beyond its holder's in _undominated's
 # pre-test (the boxes are rounded; the test proper is _holds)
+EDGE_REL = 1e-12  # of the radius: a corner this close to a line's footprint's edge is taken as outside it in
+# cell_ceiling (sweep_lower decides points on the edge by its own round-off)
 HOLD_TOL = 1e-12  # mm: how far a held sweep's path may reach beyond its holder's in held_below (the
 # rounding of a CL piece's radius, of a merged circle's turns)
 
@@ -211,8 +213,8 @@ def cell_ceiling(S, P, R, x0, y0, x1, y1):
     level_flat = S[3] == S[6] and is_flat(P)  # its lower surface is S[3] all over its footprint
     top = -math.inf
     for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
-        if point_segment_distance(cx, cy, S[1], S[2], S[4], S[5]) > R:
-            return math.inf
+        if point_segment_distance(cx, cy, S[1], S[2], S[4], S[5]) > R * (1.0 - EDGE_REL):
+            return math.inf  # beyond the footprint, or on its edge, where the lower surface may round to inf
         if not level_flat:
             top = max(top, sweep_lower(S, P, R, cx, cy, 0.0))
     return S[3] if level_flat else top

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import fusioncut.engines.analytic.contact as contact
@@ -43,6 +43,7 @@ def _check(row, lp, rect, attained=True):
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(kind=st.sampled_from(sorted(TOOLS)), a=st.tuples(coord, coord, coord), b=st.tuples(coord, coord, coord),
        c=st.tuples(coord, coord), size=st.tuples(st.floats(0.01, 6), st.floats(0.01, 6)))
+@example(kind="ball", a=(0.0, 3.0, 0.0), b=(2.5, 3.0, 0.0), c=(0.0, 0.0), size=(1.0, 1.0))  # an edge on the footprint
 def test_line_sweep_floor_and_ceiling_bound_it_over_a_cell(kind, a, b, c, size):
     _check(line_row(a, b, 0), lower_profile(TOOLS[kind]), (c[0], c[1], c[0] + size[0], c[1] + size[1]))
 
