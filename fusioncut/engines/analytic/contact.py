@@ -27,7 +27,9 @@ or all below one line sweep's tool at a single position), only the front's test 
 the result is the same as angle by angle. The angles where the slice's circle crosses an earlier
 footprint's edge (a wall) are scanned too, just either side, so engaged arcs narrower than the scan step
 (0.5 degrees) can be missed only where both their ends are neither a wall nor a front limit (an arc
-between two lower surfaces that the slice's height crosses twice within the step). Where the circle
+between two lower surfaces that the slice's height crosses twice within the step). An edge whose sweep's
+lower surface is above the slice all along it ends no arc and is not scanned (:func:`standing_walls`: a
+finishing pass's many short moves before, each a ball's edge at its centre's height). Where the circle
 only touches a boundary (tangent to a stock face or an earlier wall), rounding leaves a gap of
 ~1e-8 rad: gaps under :data:`GAP_TOL` are closed, as the B-Rep engine's one contact face has none.
 
@@ -48,8 +50,8 @@ from fusioncut.engines.analytic.brent import GOLDEN
 from fusioncut.engines.analytic.cells import DOMINANCE_MOST, relevant_sweeps
 from fusioncut.engines.analytic.polar import ring_breaks
 from fusioncut.engines.analytic.profile import profile_height, profile_radius, profile_radius_slope
-from fusioncut.engines.analytic.sweeps import (LINE, OUTSIDE, arc_holds, end_velocity, floor_within, segment_nearest,
-                                               sweep_floor, sweep_lower)
+from fusioncut.engines.analytic.sweeps import (ARC, LINE, OUTSIDE, arc_holds, end_velocity, floor_within,
+                                               segment_nearest, sweep_floor, sweep_lower)
 from fusioncut.engines.analytic.vertical import is_vertical, vertical_lower
 
 N_SCAN = 720
@@ -334,21 +336,41 @@ def beside_walls(walls, step):
 
 
 @njit(cache=True)
+def standing_walls(curves, owner, pz, C, PP, NPC, RR, eps):
+    """The footprint boundary curves (rows of ``curves``, their sweep's row in ``C`` in column ``owner``)
+    that may end an engaged arc at height ``pz``: all but a line's or an XY arc's whose edge stands
+    wholly above ``pz`` + 2 ``eps``. On its footprint's edge (distance R from its path, widened by
+    ``eps``) a sweep's lower surface is at least its path's lowest tip plus the profile's height at R, and it
+    is continuous up to that edge from within; where that bound is above the slice, the sweep holds the
+    slice's points near its edge on neither side of it, so its edge changes no point's material test there
+    (what does change there, a crossing of its surface with the slice, the scan finds as anywhere else)."""
+    keep = np.ones(curves.shape[0], dtype=np.bool_)
+    for i in range(curves.shape[0]):
+        j = int(curves[i, owner])
+        if C[j, 0] == LINE or C[j, 0] == ARC:
+            k = int(C[j, 12])
+            keep[i] = min(C[j, 3], C[j, 6]) + profile_height(PP[k, :NPC[k]], RR[k]) <= pz + 2.0 * eps
+    return curves[keep]
+
+
+@njit(cache=True)
 def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems, n_scan, circles, segments):
     """Engaged machine arcs (start, span) in rad, counter-clockwise, of the slice ``zs`` mm above the
     tip (radius ``r``, ``drho = rho'(zs)``) of the tool at the end of sweep ``S``, with the
     :func:`end_cause` of either end: an (n, 4) array (start, span, start's cause, end's cause); one
     row (0, 2 pi, ENGAGED, ENGAGED) when engaged all round. ``circles`` and ``segments``: the earlier
-    sweeps' footprint boundaries (:func:`.breaks.boundary_curves`), whose crossings with the slice's
-    circle (and the stock's faces') are scanned beside and between (:func:`beside_walls`): an engaged arc
-    narrower than the scan's step that ends at a wall is not missed."""
+    sweeps' footprint boundaries (:func:`.breaks.boundary_curves`, their owners rows of ``C``), whose
+    crossings with the slice's circle (and the stock's faces') are scanned beside and between
+    (:func:`beside_walls`; those :func:`standing_walls` keeps): an engaged arc narrower than the scan's step
+    that ends at a wall is not missed."""
     ex, ey, ez = S[4], S[5], S[6]
     vx, vy, vz = end_velocity(S)
     lift = 0.0 if vz == 0.0 else drho * vz
     pz = ez + zs
     lim = front_limits(vx, vy, lift)
     walls = ring_breaks(r, ex, ey, stock[0], stock[3], stock[1], stock[4], np.zeros((0, 2)), np.zeros((0, 2)),
-                        circles, segments)
+                        standing_walls(circles, 3, pz, C, PP, NPC, RR, eps),
+                        standing_walls(segments, 4, pz, C, PP, NPC, RR, eps))
     beside = beside_walls(walls, TWO_PI / n_scan)
     n = n_scan + lim.shape[0] + beside.shape[0]
     th = np.empty(n)

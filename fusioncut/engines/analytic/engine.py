@@ -532,10 +532,13 @@ class AnalyticEngine:
         grid = sweep_grid(ex - reach, ey - reach, 2 * reach, END_GRID, row, part.profile.pieces, R, Ce, t.profiles,
                           t.counts, t.radii, s[2], s[5], 2 * WALL_EPS, *ring)
         near = np.unique(grid[2])
-        # the footprints' edges (walls): the boundary curves at each sweep's tool radius
+        # the footprints' edges (walls): the boundary curves at each sweep's tool radius, each owned by its
+        # sweep's row in Ce (slice_arcs leaves out the walls that stand wholly above its slice)
         shaping = Ce[near]
         walls = curves_at(shaping, t.radii[shaping[:, 12].astype(np.int64)][:, None],
                           np.ones(len(shaping), dtype=np.int64), np.full(len(shaping), math.nan))
+        walls[0][:, 3] = near[walls[0][:, 3].astype(np.int64)]
+        walls[1][:, 4] = near[walls[1][:, 4].astype(np.int64)]
         args = (row, part.profile.pieces, R, Ce, CBe, t.profiles, t.counts, t.radii, np.array(s), WALL_EPS, *grid, *walls)
         return args, near
 

@@ -187,3 +187,58 @@ def test_the_contact_range_passes_over_a_wall_s_untouched_heights_as_the_walk_fi
     for a, b in ball:
         assert a.axial_range == b.axial_range and a.contact_area == b.contact_area, a.cl_index
         assert [s.intervals for s in a.slices] == [s.intervals for s in b.slices], a.cl_index
+
+
+def test_a_wall_left_out_of_a_slice_s_scan_changes_no_point_s_material_there():
+    """``standing_walls`` keeps a footprint's edge only where its sweep may hold the slice's points there.
+    Random level, ramped and plunging lines of a ball, a flat and a bull-nose end mill; at random slice
+    heights, every point of a left-out edge (sampled along the curves, those at distance R from the path:
+    the edge, not an end circle's inner half) is below the sweep's lower surface (eps-widened, as the
+    material test takes it) by more than eps, on the edge and just beyond it: the sweep cuts none of them, so the
+    edge ends no arc. A flat end mill's edges are left out only where the slice is below its path's lowest
+    tip; a round bar's outside is always kept. Both kinds of answer are given often."""
+    from fusioncut.engines.analytic.breaks import curves_at
+    from fusioncut.engines.analytic.contact import standing_walls
+    from fusioncut.engines.analytic.sweeps import outside_row, point_segment_distance, sweep_lower
+
+    PP, NPC, RR = _tools()
+    rng = np.random.default_rng(11)
+    rows = []
+    for _ in range(40):
+        a = rng.uniform(-8.0, 8.0, 3)
+        b = a + rng.uniform(-4.0, 4.0, 3) * rng.integers(0, 2, 3)  # some level, some plunges, some 3D
+        rows.append(line_row(tuple(a), tuple(b), int(rng.integers(0, 3))))
+    rows.append(outside_row((0.0, 0.0), 9.0, -20.0, 0))
+    C = np.array(rows)
+    circles, segments = curves_at(C, RR[C[:, 12].astype(np.int64)][:, None], np.ones(len(C), dtype=np.int64),
+                                  np.full(len(C), math.nan))
+    kept_flat_above = dropped = kept = 0
+    for pz in rng.uniform(-12.0, 12.0, 60):
+        for curves, owner in ((circles, 3), (segments, 4)):
+            left = standing_walls(curves, owner, pz, C, PP, NPC, RR, EPS)
+            keys = {tuple(c) for c in left}
+            for c in curves:
+                j = int(c[owner])
+                if C[j, 0] == 2.0:
+                    assert tuple(c) in keys
+                    continue
+                if tuple(c) in keys:
+                    kept += 1
+                    kept_flat_above += int(C[j, 12]) == 1 and pz >= min(C[j, 3], C[j, 6])
+                    continue
+                dropped += 1
+                assert not (int(C[j, 12]) == 1 and pz >= min(C[j, 3], C[j, 6])), "a flat end mill's wall"
+                k = int(C[j, 12])
+                for s in np.linspace(0.0, 1.0, 41):
+                    if owner == 3:
+                        t = 2 * math.pi * s
+                        px, py = c[0] + c[2] * math.cos(t), c[1] + c[2] * math.sin(t)
+                    else:
+                        px, py = c[0] + s * (c[2] - c[0]), c[1] + s * (c[3] - c[1])
+                    d = point_segment_distance(px, py, C[j, 1], C[j, 2], C[j, 4], C[j, 5])
+                    if d < RR[k] - 1e-9:
+                        continue  # inside the footprint: the curve is no edge here
+                    for q in (px, px + 0.5 * EPS):
+                        low = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], q, py, EPS)
+                        assert low > pz + EPS, (j, pz, px, py, low)
+    assert dropped > 1000 and kept > 1000 and kept_flat_above > 100, (dropped, kept, kept_flat_above)
