@@ -144,3 +144,25 @@ def test_a_ramps_edge_above_a_lower_pass_is_no_break_point():
     v, _ = removed_volume(xs, -3.5, 3.5, circles, segments, *args[:-1], -10.0, 0.0, 1e-12, 1e-12, edges)
     w, _ = removed_volume(more, -3.5, 3.5, circles, segments, *args[:-1], -10.0, 0.0, 1e-12, 1e-12, edges)
     assert v > 10.0 and v == pytest.approx(w, rel=1e-10)
+
+
+@pytest.mark.parametrize("shift, flagged", [(0.0, True), (0.5e-9, True), (1e-6, False), (-1e-6, False)])
+def test_a_rim_running_on_a_cells_edge_flags_that_end(shift, flagged):
+    """A ball end mill's level pass along x (R = 3): its footprint's sides y = +-3 are rims, where the lower
+    surface rises as a square root. A line from y = -3 + shift to 3 - shift has them on its ends (shift 0, a
+    cell cut from the footprint's box), or 0.5e-9 mm past them (shift 0.5e-9): the ends are flagged, so the inner
+    rule's map is flat there. 1e-6 mm inside the line (shift -1e-6), the rims are break points of their own, flagged
+    as such; 1e-6 mm past its ends they flag nothing."""
+    from fusioncut.model import BallEndMill
+
+    ball = lower_profile(BallEndMill(6, 20))
+    own = line_row((-20, 0, -2), (20, 0, -2), 0)
+    circles, segments = boundary_curves(own[None, :], [(ball.radius,)], [ball.radius])
+    P1, N1, R1 = ball.pieces[None], np.array([len(ball.pieces)]), np.array([ball.radius])
+    args = (own, ball.pieces, ball.radius, np.zeros((0, 13)), np.zeros((0, 4)), P1, N1, R1, -10.0)
+    pts, owners, rims = crossings_at_x(0.0, circles, segments, -3.0 + shift, 3.0 - shift, *args)
+    if shift < 0.0 and not flagged:
+        assert pts.tolist() == [-3.0 + shift, -3.0, 3.0, 3.0 - shift] and rims.tolist() == [0.0, 1.0, 1.0, 0.0]
+    else:
+        assert pts.tolist() == [-3.0 + shift, 3.0 - shift]
+        assert rims.tolist() == ([1.0, 1.0] if flagged else [0.0, 0.0])
