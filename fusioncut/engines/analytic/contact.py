@@ -222,7 +222,13 @@ def _meets_ring(bx0, by0, bx1, by1, r_in, r_out):
 @njit(cache=True, inline="always")
 def _ahead(theta, vx, vy, lift):
     """The front condition's closed-form part at machine angle ``theta``: ``u . v_xy >= lift``."""
-    g = math.cos(theta) * vx + math.sin(theta) * vy - lift
+    return _ahead_cs(math.cos(theta), math.sin(theta), vx, vy, lift)
+
+
+@njit(cache=True, inline="always")
+def _ahead_cs(c, s, vx, vy, lift):
+    """:func:`_ahead` at the angle whose cosine and sine are ``c`` and ``s``."""
+    g = c * vx + s * vy - lift
     return g >= -1e-12 * (abs(vx) + abs(vy) + abs(lift))
 
 
@@ -250,9 +256,16 @@ def _front_at(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, eps):
 def _engaged(theta, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
     """Engaged at machine angle ``theta``: the closed-form front test first (it rules out the back
     half of a level move's circle at no cost), then the material, then an arc's earlier turns."""
-    if not _ahead(theta, vx, vy, lift):
+    return _engaged_cs(math.cos(theta), math.sin(theta), vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR,
+                       stock, eps, G, gstart, gitems)
+
+
+@njit(cache=True, inline="always")
+def _engaged_cs(c, s, vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
+    """:func:`_engaged` at the angle whose cosine and sine are ``c`` and ``s``."""
+    if not _ahead_cs(c, s, vx, vy, lift):
         return False
-    px, py = ex + r * math.cos(theta), ey + r * math.sin(theta)
+    px, py = ex + r * c, ey + r * s
     if not material_at(px, py, pz, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems):
         return False
     return _past_own_turns(S, P, R, px, py, pz, eps)
@@ -354,6 +367,44 @@ def standing_walls(curves, owner, pz, C, PP, NPC, RR, eps):
 
 
 @njit(cache=True)
+def scan_angles(n_scan, extra):
+    """(the scan's angles, rad: the ``n_scan`` even ones 2 pi i / n_scan and the sorted ``extra`` ones, merged in
+    order; their cosines; their sines). The even angles' cosines and sines come from the first quarter's
+    cosines by the quarter turns' symmetries (where ``n_scan`` is a multiple of 4), within a few ulps of
+    each one's own: a scan angle only brackets an arc's end, which bisection then finds."""
+    n = n_scan + extra.shape[0]
+    th, cs, sn = np.empty(n), np.empty(n), np.empty(n)
+    q = n_scan // 4 if n_scan % 4 == 0 else 0
+    quarter = np.empty(q + 1)
+    for j in range(q + 1):
+        quarter[j] = math.cos(TWO_PI * j / n_scan)
+    i = e = 0
+    for k in range(n):
+        if e == extra.shape[0] or (i < n_scan and TWO_PI * i / n_scan <= extra[e]):
+            t = TWO_PI * i / n_scan
+            th[k] = t
+            if q > 0:
+                turn, j = divmod(i, q)
+                c, s = quarter[j], quarter[q - j]  # cos and sin of the angle within its quarter
+                if turn == 0:
+                    cs[k], sn[k] = c, s
+                elif turn == 1:
+                    cs[k], sn[k] = -s, c
+                elif turn == 2:
+                    cs[k], sn[k] = -c, -s
+                else:
+                    cs[k], sn[k] = s, -c
+            else:
+                cs[k], sn[k] = math.cos(t), math.sin(t)
+            i += 1
+        else:
+            th[k] = extra[e]
+            cs[k], sn[k] = math.cos(extra[e]), math.sin(extra[e])
+            e += 1
+    return th, cs, sn
+
+
+@njit(cache=True)
 def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, gitems, n_scan, circles, segments):
     """Engaged machine arcs (start, span) in rad, counter-clockwise, of the slice ``zs`` mm above the
     tip (radius ``r``, ``drho = rho'(zs)``) of the tool at the end of sweep ``S``, with the
@@ -372,18 +423,15 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
                         standing_walls(circles, 3, pz, C, PP, NPC, RR, eps),
                         standing_walls(segments, 4, pz, C, PP, NPC, RR, eps))
     beside = beside_walls(walls, TWO_PI / n_scan)
-    n = n_scan + lim.shape[0] + beside.shape[0]
-    th = np.empty(n)
-    for i in range(n_scan):
-        th[i] = TWO_PI * i / n_scan
-    for i in range(lim.shape[0]):
-        th[n_scan + i] = lim[i]
+    extra = np.empty(lim.shape[0] + beside.shape[0])
+    extra[:lim.shape[0]] = lim
     for i in range(beside.shape[0]):
-        th[n_scan + lim.shape[0] + i] = beside[i] % TWO_PI
-    th = np.sort(th)
+        extra[lim.shape[0] + i] = beside[i] % TWO_PI
+    th, cs, sn = scan_angles(n_scan, np.sort(extra))
+    n = th.shape[0]
     on = np.empty(n, dtype=np.bool_)
     for i in range(n):
-        on[i] = _ahead(th[i], vx, vy, lift)
+        on[i] = _ahead_cs(cs[i], sn[i], vx, vy, lift)
     for i0 in range(0, n, BLOCK):
         i1 = min(i0 + BLOCK, n) - 1
         if not on[i0:i1 + 1].any():
@@ -396,10 +444,10 @@ def slice_arcs(S, P, R, zs, r, drho, C, CB, PP, NPC, RR, stock, eps, G, gstart, 
             if state == 0:
                 on[i] = False
             elif state == 1:
-                on[i] = _past_own_turns(S, P, R, ex + r * math.cos(th[i]), ey + r * math.sin(th[i]), pz, eps)
+                on[i] = _past_own_turns(S, P, R, ex + r * cs[i], ey + r * sn[i], pz, eps)
             else:
-                on[i] = _engaged(th[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps, G,
-                                 gstart, gitems)
+                on[i] = _engaged_cs(cs[i], sn[i], vx, vy, lift, S, P, R, ex, ey, pz, r, C, CB, PP, NPC, RR, stock, eps,
+                                    G, gstart, gitems)
     out = np.empty((n, 4))
     out[:, 2:] = ENGAGED
     if on.all():

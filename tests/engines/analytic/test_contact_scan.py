@@ -242,3 +242,16 @@ def test_a_wall_left_out_of_a_slice_s_scan_changes_no_point_s_material_there():
                         low = sweep_lower(C[j], PP[k, :NPC[k]], RR[k], q, py, EPS)
                         assert low > pz + EPS, (j, pz, px, py, low)
     assert dropped > 1000 and kept > 1000 and kept_flat_above > 100, (dropped, kept, kept_flat_above)
+
+
+@pytest.mark.parametrize("n_scan", [720, 360, 90, 30])
+def test_the_scan_s_angles_are_the_even_ones_and_the_extra_ones_in_order_with_their_cosines(n_scan):
+    """``scan_angles``: the even angles and the extra ones (some equal to even ones), merged in order; the
+    cosines and sines from the first quarter's by symmetry within 2e-15 of each angle's own."""
+    from fusioncut.engines.analytic.contact import scan_angles
+
+    extra = np.sort(np.concatenate([np.random.default_rng(n_scan).uniform(0.0, 2 * math.pi, 9),
+                                    2 * math.pi * np.array([0, 3, n_scan // 2]) / n_scan]))
+    th, cs, sn = scan_angles(n_scan, extra)
+    assert th.tolist() == sorted([2 * math.pi * i / n_scan for i in range(n_scan)] + extra.tolist())
+    assert np.abs(cs - np.cos(th)).max() < 2e-15 and np.abs(sn - np.sin(th)).max() < 2e-15
