@@ -28,7 +28,7 @@ from fusioncut.engines.analytic.sweeps import ARC, NCOL, OUTSIDE, sweep_floor, s
 
 ZERO_MARGIN = 1e-9  # mm: how far inside another footprint, and below the CL's surface, a crossing must lie
 # for it to be no break point (nothing_removed_near)
-RIM_BEYOND = 1e-9  # mm: a rim this far past a line's end (or on it) flags that end (crossings_at_x)
+RIM_BEYOND = 1e-9  # mm: a rim this far past a line's end (or on it) flags that end (_rim_end)
 MERGE_TOL = 1e-12  # mm: x break points this close are one; a kink moved this far costs the outer integral
 # no more than this times the inner integral's jump there
 
@@ -79,20 +79,16 @@ def nothing_removed_near(j, i, x, y, S, P, R, C, CB, PP, NPC, RR, zb):
 
 
 @njit(cache=True, inline="always")
-def _cross(y, lo, hi, owner, is_rim, out, own, rim, x, S, P, R, C, CB, PP, NPC, RR, zb):
-    """:func:`crossings_at_x`'s step for one crossing ``y`` of a curve (its ``owner`` and rim flag): a break
-    point within (lo, hi); a rim on an end or at most :data:`RIM_BEYOND` past it (a footprint's side along
-    a cell's edge, the CL's own where the cell's edge is its footprint box's) flags that end, whose
-    removed height then rises as a square root."""
-    j = int(owner) - 1
-    if lo < y < hi:
-        if not (j >= 0 and nothing_removed_near(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
-            out.append(y)
-            own.append(owner)
-            rim.append(is_rim)
-    elif is_rim > 0.0 and (lo - RIM_BEYOND <= y <= lo or hi <= y <= hi + RIM_BEYOND):
-        if not (j >= 0 and nothing_removed_near(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
-            rim[0 if y <= lo else 1] = is_rim
+def _rim_end(y, lo, hi, is_rim):
+    """Which end of [lo, hi] the crossing ``y`` of a curve outside (lo, hi) flags (0 lo, 1 hi, -1 none): a rim
+    on an end or at most :data:`RIM_BEYOND` past it (a footprint's side along a cell's edge, the CL's own where
+    the cell's edge is its footprint box's), where the removed height rises as a square root."""
+    if is_rim > 0.0:
+        if lo - RIM_BEYOND <= y <= lo:
+            return 0
+        if hi <= y <= hi + RIM_BEYOND:
+            return 1
+    return -1
 
 
 @njit(cache=True)
@@ -100,7 +96,7 @@ def crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb
     """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; the index (in the
     cell's rows: 0 the CL's own sweep, j + 1 the earlier sweep ``C[j]``) of the sweep whose curve
     makes each one (-1 for lo and hi); and whether that curve is a rim (:func:`boundary_curves`; lo and
-    hi, a cell's edges, are one where a rim runs on them, :func:`_cross`). A crossing of an earlier sweep's curve where nothing is removed
+    hi, a cell's edges, are one where a rim runs on them, :func:`_rim_end`). A crossing of an earlier sweep's curve where nothing is removed
     around it (:func:`nothing_removed_near`) is left out."""
     out = [lo, hi]
     own = [-1.0, -1.0]
@@ -111,12 +107,30 @@ def crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb
         if s >= 0.0:
             w = math.sqrt(s)
             for y in (circles[i, 1] - w, circles[i, 1] + w):
-                _cross(y, lo, hi, circles[i, 3], circles[i, 4], out, own, rim, x, S, P, R, C, CB, PP, NPC, RR, zb)
+                j = int(circles[i, 3]) - 1
+                end = -1 if lo < y < hi else _rim_end(y, lo, hi, circles[i, 4])
+                if (lo < y < hi or end >= 0) and not (
+                        j >= 0 and nothing_removed_near(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
+                    if end >= 0:
+                        rim[end] = circles[i, 4]
+                    else:
+                        out.append(y)
+                        own.append(circles[i, 3])
+                        rim.append(circles[i, 4])
     for i in range(segments.shape[0]):
         x0, y0, x1, y1 = segments[i, 0], segments[i, 1], segments[i, 2], segments[i, 3]
         if x1 != x0 and min(x0, x1) <= x <= max(x0, x1):
             y = y0 + (y1 - y0) * (x - x0) / (x1 - x0)
-            _cross(y, lo, hi, segments[i, 4], segments[i, 5], out, own, rim, x, S, P, R, C, CB, PP, NPC, RR, zb)
+            j = int(segments[i, 4]) - 1
+            end = -1 if lo < y < hi else _rim_end(y, lo, hi, segments[i, 5])
+            if (lo < y < hi or end >= 0) and not (
+                    j >= 0 and nothing_removed_near(j, j, x, y, S, P, R, C, CB, PP, NPC, RR, zb)):
+                if end >= 0:
+                    rim[end] = segments[i, 5]
+                else:
+                    out.append(y)
+                    own.append(segments[i, 4])
+                    rim.append(segments[i, 5])
     pts = np.array(out)
     order = np.argsort(pts, kind="mergesort")
     return pts[order], np.array(own)[order], np.array(rim)[order]
