@@ -61,7 +61,9 @@ SAME_TOL = 1e-11  # mm: surfaces this close are one to the integrand's state (_c
 # at its own height (a circle gone round again, a helix run out on a level circle at its foot) leaves
 # surfaces equal up to round-off, where the state would flicker from node to node (the removed height is
 # integrated as it is: only where its parts meet is decided with this margin)
-X_KINK_TOL = 1e-10  # mm: the place of a line where the kinks along the lines change
+X_KINK_TOL = 1e-8  # mm: the place of a line where the kinks along the lines change. The inner integral is
+# continuous there (a jump of it, a wall along y, is a curve's end or extreme: an x break point), its slope
+# changes or it bends as a power 3/2, so a part ending this far off errs by the order of its square
 MAX_CHANGES = 2  # changes of state located between two probes, one after the other; more are left to the adaptive
 # rule (each located one costs a part of its own, more than a kink of little weight costs inside one)
 CLUSTER = 1e-5  # of the probes' spacing: the next change is looked for this far past the last one (changes
