@@ -96,8 +96,8 @@ def crossings_at_x(x, circles, segments, lo, hi, S, P, R, C, CB, PP, NPC, RR, zb
     """Sorted break points in [lo, hi] on the line at ``x``, with lo and hi; the index (in the
     cell's rows: 0 the CL's own sweep, j + 1 the earlier sweep ``C[j]``) of the sweep whose curve
     makes each one (-1 for lo and hi); and whether that curve is a rim (:func:`boundary_curves`; lo and
-    hi, a cell's edges, are one where a rim runs on them, :func:`_rim_end`). A crossing of an earlier sweep's curve where nothing is removed
-    around it (:func:`nothing_removed_near`) is left out."""
+    hi, a cell's edges, are one where a rim runs on them, :func:`_rim_end`). A crossing of an earlier
+    sweep's curve where nothing is removed around it (:func:`nothing_removed_near`) is left out."""
     out = [lo, hi]
     own = [-1.0, -1.0]
     rim = [0.0, 0.0]
