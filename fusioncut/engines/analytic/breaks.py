@@ -256,6 +256,24 @@ def _meets(x, y, x0, y0, x1, y1, a, b, out):
         out.append((x, y, a, b))
 
 
+@njit(cache=True, inline="always")
+def circle_meetings(ax, ay, ar, bx, by, br):
+    """(whether the circles about (ax, ay) of radius ``ar`` and about (bx, by) of radius ``br`` meet; the two
+    points where they do, the one left of the line from the first centre to the second first; concentric
+    circles meet nowhere)."""
+    dx, dy = bx - ax, by - ay
+    d2 = dx * dx + dy * dy
+    if d2 <= 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0
+    d = math.sqrt(d2)
+    if d > ar + br or d < abs(ar - br):
+        return False, 0.0, 0.0, 0.0, 0.0
+    a = (ar * ar - br * br + d2) / (2.0 * d)
+    h = math.sqrt(max(ar * ar - a * a, 0.0))
+    mx, my = ax + a * dx / d, ay + a * dy / d
+    return True, mx - h * dy / d, my + h * dx / d, mx + h * dy / d, my - h * dx / d
+
+
 @njit(cache=True)
 def curve_meetings_x(circles, segments, x0, y0, x1, y1):
     """Every point in the rectangle where two of the boundary curves meet (circle and circle, circle
@@ -270,18 +288,10 @@ def curve_meetings_x(circles, segments, x0, y0, x1, y1):
         ax, ay, ar, ao = circles[i, 0], circles[i, 1], circles[i, 2], circles[i, 3]
         for j in range(i + 1, nc):
             bx, by, br = circles[j, 0], circles[j, 1], circles[j, 2]
-            dx, dy = bx - ax, by - ay
-            d2 = dx * dx + dy * dy
-            if d2 <= 0.0:
-                continue
-            d = math.sqrt(d2)
-            if d > ar + br or d < abs(ar - br):
-                continue
-            a = (ar * ar - br * br + d2) / (2.0 * d)
-            h = math.sqrt(max(ar * ar - a * a, 0.0))
-            mx, my = ax + a * dx / d, ay + a * dy / d
-            _meets(mx - h * dy / d, my + h * dx / d, x0, y0, x1, y1, ao, circles[j, 3], out)
-            _meets(mx + h * dy / d, my - h * dx / d, x0, y0, x1, y1, ao, circles[j, 3], out)
+            met, px, py, qx, qy = circle_meetings(ax, ay, ar, bx, by, br)
+            if met:
+                _meets(px, py, x0, y0, x1, y1, ao, circles[j, 3], out)
+                _meets(qx, qy, x0, y0, x1, y1, ao, circles[j, 3], out)
         for j in range(ns):
             px, py = segments[j, 0], segments[j, 1]
             ux, uy = segments[j, 2] - px, segments[j, 3] - py

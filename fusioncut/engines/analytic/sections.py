@@ -30,6 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
+from fusioncut.engines.analytic.breaks import circle_meetings
 from fusioncut.engines.analytic.profile import is_ball, is_flat
 
 CONST, ARC_PIECE = 0.0, 1.0
@@ -180,16 +181,10 @@ def section_breaks(pieces, n, levels, ylo, yhi):
             if pieces[j, 0] != ARC_PIECE:
                 continue
             # two circles in the (y, z) plane about (m, c) and (m2, c2)
-            dy, dz = pieces[j, 4] - m, pieces[j, 3] - c
-            d = math.hypot(dy, dz)
-            r2 = pieces[j, 5]
-            if d == 0.0 or d > rho + r2 or d < abs(rho - r2):
-                continue
-            a = (rho * rho - r2 * r2 + d * d) / (2.0 * d)
-            q = math.sqrt(max(rho * rho - a * a, 0.0))
-            ym = m + a * dy / d
-            out.append(ym - q * dz / d)
-            out.append(ym + q * dz / d)
+            met, y0, _, y1, _ = circle_meetings(m, c, rho, pieces[j, 4], pieces[j, 3], pieces[j, 5])
+            if met:
+                out.append(y0)
+                out.append(y1)
     ys = np.sort(np.array(out))
     return ys[(ys >= ylo) & (ys <= yhi)]
 
